@@ -1,0 +1,224 @@
+"""Build the project's FMI 2.0 Co-Simulation FMUs with pythonfmu.
+
+:func:`build_pythonfmu` is the generic recipe (used for every FMU of the
+project): copy the model script and its project files into a fresh temporary
+folder whose path has only ASCII letters, digits and ``_``, build with
+``pythonfmu.FmuBuilder.build_FMU``, add units and a ``DefaultExperiment`` to the
+model description (:mod:`papwc.build.model_description`), check the result with
+``fmpy.validation.validate_fmu`` and move it into the output folder.
+
+:func:`build_friction_plant` and :func:`build_trivial` apply it to
+``fmu_src/FrictionPlant`` and ``fmu_src/PapwcTrivial``.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+import sys
+import tempfile
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+
+from fmpy.validation import validate_fmu
+from pythonfmu import FmuBuilder
+
+from papwc.build.model_description import add_units, ensure_default_experiment
+from papwc.errors import BuildError
+from papwc.fmu_src import FMU_SRC_DIR
+
+__all__ = [
+    "FRICTION_PLANT_UNITS",
+    "STATE_OPTIONS",
+    "build_friction_plant",
+    "build_pythonfmu",
+    "build_trivial",
+]
+
+#: Unit of every Real variable of FrictionPlant.fmu.
+FRICTION_PLANT_UNITS: dict[str, str] = {
+    "m": "kg",
+    "f_c": "N",
+    "f_s": "N",
+    "c": "N.s/m",
+    "x0": "m",
+    "v0": "m/s",
+    "x_resolution": "m",
+    "u": "N",
+    "x": "m",
+    "v": "m/s",
+    "x_meas": "m",
+}
+
+#: CoSimulation capability flags set on every FMU of the project.
+STATE_OPTIONS: dict[str, bool] = {
+    "canHandleVariableCommunicationStepSize": True,
+    "canGetAndSetFMUstate": True,
+    "canSerializeFMUstate": True,
+}
+
+#: Characters allowed in the path of the folder where an FMU is assembled.
+_SAFE_PATH = re.compile(r"[A-Za-z0-9_/]+")
+
+
+def _safe_temp_dir() -> Path:
+    """Create a temporary folder whose absolute path has only ASCII letters, digits, '_'."""
+    for base in (tempfile.gettempdir(), "/tmp", "/var/tmp"):
+        base_path = Path(base).resolve()
+        if _SAFE_PATH.fullmatch(str(base_path)) and base_path.is_dir():
+            return Path(tempfile.mkdtemp(prefix="papwc", dir=base_path))
+    raise BuildError(
+        f"no temporary folder with a path of ASCII letters, digits and '_' only "
+        f"(tried {tempfile.gettempdir()!r}, '/tmp', '/var/tmp'); set TMPDIR to such a folder"
+    )
+
+
+def build_pythonfmu(
+    script: Path,
+    out_dir: Path,
+    *,
+    project_files: Iterable[Path] = (),
+    units: Mapping[str, str] | None = None,
+    unit_definitions: Mapping[str, Mapping[str, int]] | None = None,
+    documentation: Iterable[Path] = (),
+    default_experiment: tuple[float, float, float] = (0.0, 1.0, 0.01),
+    options: Mapping[str, bool] | None = None,
+) -> Path:
+    """Build one pythonfmu FMU, add units and a default experiment, validate it.
+
+    Parameters
+    ----------
+    script : Path
+        The model script; its ``Fmi2Slave`` class name is the model identifier.
+    out_dir : Path
+        Folder the ``<modelIdentifier>.fmu`` is written to (created if needed;
+        an existing FMU of that name is replaced).
+    project_files : iterable of Path
+        Files bundled into ``resources/`` beside the script (importable by name).
+    units : mapping of str to str, optional
+        Variable name -> unit, see :func:`papwc.build.model_description.add_units`.
+    unit_definitions : mapping, optional
+        Units beyond :data:`papwc.build.model_description.UNIT_DEFINITIONS`.
+    documentation : iterable of Path
+        Files put into the FMU's ``documentation/`` folder.
+    default_experiment : (float, float, float)
+        Start time, stop time and step size (s) written if the model sets none.
+    options : mapping of str to bool, optional
+        CoSimulation capability flags; default :data:`STATE_OPTIONS`.
+
+    Returns
+    -------
+    Path
+        The FMU written.
+
+    Raises
+    ------
+    BuildError
+        If a source file is missing, pythonfmu fails, the model description
+        cannot be completed, or ``fmpy`` reports a validation problem.
+    """
+    script = Path(script)
+    project_files = [Path(p) for p in project_files]
+    documentation = [Path(p) for p in documentation]
+    for source in (script, *project_files, *documentation):
+        if not source.is_file():
+            raise BuildError(f"cannot build {script.stem}.fmu: source file {source} does not exist")
+    out_dir = Path(out_dir)
+    work = _safe_temp_dir()
+    saved_path = list(sys.path)
+    saved_modules = set(sys.modules)
+    try:
+        src = work / "src"
+        src.mkdir()
+        for source in (script, *project_files):
+            shutil.copy2(source, src / source.name)
+        doc_dir = None
+        if documentation:
+            doc_dir = work / "doc"
+            doc_dir.mkdir()
+            for source in documentation:
+                shutil.copy2(source, doc_dir / source.name)
+        built_dir = work / "fmu"
+        try:
+            built = FmuBuilder.build_FMU(
+                src / script.name,
+                dest=built_dir,
+                project_files=[src / p.name for p in project_files],
+                documentation_folder=doc_dir,
+                **dict(STATE_OPTIONS if options is None else options),
+            )
+        except Exception as exc:  # pythonfmu raises what the model script raises
+            raise BuildError(
+                f"pythonfmu could not build an FMU from {script}: {type(exc).__name__}: {exc}"
+            ) from exc
+        built = Path(built)
+        if units:
+            add_units(built, units, unit_definitions)
+        ensure_default_experiment(built, *default_experiment)
+        problems = validate_fmu(str(built))
+        if problems:
+            raise BuildError(
+                f"{built.name} built from {script} is not valid: " + "; ".join(problems)
+            )
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+            target = out_dir / built.name
+            shutil.copyfile(built, target)
+        except OSError as exc:
+            raise BuildError(f"cannot write {built.name} into {out_dir}: {exc}") from exc
+        return target
+    finally:
+        # pythonfmu imports the model from the build folder; forget it so that an
+        # FMU loaded later in this process imports its own bundled copy.
+        sys.path[:] = saved_path
+        for name in set(sys.modules) - saved_modules:
+            module_file = getattr(sys.modules[name], "__file__", None) or ""
+            if module_file.startswith(str(work)):
+                del sys.modules[name]
+        shutil.rmtree(work, ignore_errors=True)
+
+
+def build_friction_plant(out_dir: Path) -> Path:
+    """Build ``FrictionPlant.fmu`` (exact stick-slip plant) into ``out_dir``.
+
+    Bundles ``fmu_src/papwc_stickslip.py`` and ``readme.md`` (as documentation);
+    enables variable step sizes, getFMUstate/setFMUstate and serialization.
+
+    Parameters
+    ----------
+    out_dir : Path
+        Output folder, created if needed.
+
+    Returns
+    -------
+    Path
+        ``out_dir / "FrictionPlant.fmu"``.
+    """
+    model_dir = FMU_SRC_DIR / "FrictionPlant"
+    return build_pythonfmu(
+        model_dir / "FrictionPlant.py",
+        out_dir,
+        project_files=[FMU_SRC_DIR / "papwc_stickslip.py"],
+        units=FRICTION_PLANT_UNITS,
+        documentation=[model_dir / "readme.md"],
+    )
+
+
+def build_trivial(out_dir: Path) -> Path:
+    """Build ``PapwcTrivial.fmu`` (input copied to output, benchmark floor) into ``out_dir``.
+
+    Parameters
+    ----------
+    out_dir : Path
+        Output folder, created if needed.
+
+    Returns
+    -------
+    Path
+        ``out_dir / "PapwcTrivial.fmu"``.
+    """
+    return build_pythonfmu(
+        FMU_SRC_DIR / "PapwcTrivial" / "PapwcTrivial.py",
+        out_dir,
+        units={"u": "1", "y": "1"},
+    )

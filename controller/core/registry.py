@@ -1,0 +1,26 @@
+"""Controller kinds by name: a new controller is one module and one line here."""
+
+from __future__ import annotations
+
+from .base import Controller
+from .papwc import PapwcController
+from .pwc import PwcController
+from .settings import ControllerSettings
+
+#: Controller classes by the ``kind`` of a scenario's ``[[controller]]`` table.
+CONTROLLER_KINDS: dict[str, type[Controller]] = {
+    PwcController.kind: PwcController,
+    PapwcController.kind: PapwcController,
+}
+
+
+def make_controller(settings: ControllerSettings, T: float) -> Controller:
+    """A controller of ``settings.kind`` for sample period ``T`` (s)."""
+    try:
+        cls = CONTROLLER_KINDS[settings.kind]
+    except KeyError:
+        raise ValueError(
+            f"controller kind {settings.kind!r} is unknown; known kinds: "
+            + ", ".join(sorted(CONTROLLER_KINDS))
+        ) from None
+    return cls(settings, T)

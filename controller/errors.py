@@ -1,0 +1,17 @@
+"""Exceptions of the project: each says what is wrong, where, and what is allowed."""
+
+
+class PapwcError(Exception):
+    """Base class of the errors the command line reports without a traceback."""
+
+
+class ScenarioError(PapwcError, ValueError):
+    """A scenario or battery file is invalid; the message names the file and the field."""
+
+
+class FmuError(PapwcError, RuntimeError):
+    """An FMU returned Discard, Error or Fatal; the message names the time and the call."""
+
+
+class BuildError(PapwcError, RuntimeError):
+    """An FMU or SSP could not be built."""

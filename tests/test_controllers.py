@@ -1,0 +1,192 @@
+"""The paper's controllers: Eq. (11), the estimators, safeguards, and closed loops."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from numpy.testing import assert_allclose
+
+from papwc.core import make_controller
+from papwc.core.estimators import Rls2, ScalarRls
+from papwc.core.papwc import PapwcController, papwc_amplitude
+from papwc.core.pwc import PwcController, b_coulomb
+from papwc.core.settings import ControllerSettings
+from papwc.fmu_src import papwc_stickslip as physics
+from papwc.master import Maneuver, run_controller
+from papwc.recording import summarize
+from papwc.scenario import load_scenario
+from papwc.slaves import FmuSlave, PhysicsSlave
+
+TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+T = 0.01
+
+
+@pytest.mark.parametrize("f_c", [60.0, 80.0, 100.0, 129.0])
+@pytest.mark.parametrize("t_p", [0.004, 0.013, 0.027, 0.0555])
+def test_eq11_plans_the_requested_eq4_displacement(f_c, t_p):
+    m, f_p = 150.0, 300.0
+    n = math.ceil(t_p / T)
+    T_x = n * T
+    f_star = papwc_amplitude(f_c, f_p, t_p, T_x)
+    requested = b_coulomb(f_p, m, f_c) * t_p**2  # Eq. (4) at (f_p, t_p)
+    planned = b_coulomb(f_star, m, f_c) * T_x**2  # Eq. (4) at (f_p*, T_x)
+    assert_allclose(planned, requested, rtol=1e-12)
+    assert f_star <= f_p
+
+
+def _regressors(seed, n=12):
+    rng = np.random.default_rng(seed)
+    f = rng.uniform(140.0, 300.0, n)
+    t = rng.integers(1, 10, n) * T
+    phi = np.column_stack([f**2 * t**2, -f * t**2])
+    a_true = np.array([3.2e-5, 3.4e-3])
+    d = phi @ a_true + rng.normal(0.0, 2e-5, n)
+    return phi, d
+
+
+@pytest.mark.parametrize("lam", [1.0, 0.95])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_rls_equals_batch_least_squares(lam, seed):
+    phi, d = _regressors(seed)
+    a0 = np.array([1.0 / (2 * 150 * 80), 1.0 / 300])
+    delta_inv = 1e-5
+    rls = Rls2(tuple(a0), delta_inv=delta_inv, lam=lam,
+               a_bounds=((-math.inf, math.inf), (-math.inf, math.inf)))
+    for row, di in zip(phi, d, strict=True):
+        rls.update(tuple(row), float(di))
+    n = len(d)
+    w = lam ** np.arange(n - 1, -1, -1)
+    # minimises sum w_i (d_i - a^T phi_i)^2 + lam^n / delta_inv * |a - a0|^2
+    prior = lam**n / delta_inv
+    A = (phi * w[:, None]).T @ phi + prior * np.eye(2)
+    rhs = (phi * w[:, None]).T @ d + prior * a0
+    a_batch = np.linalg.solve(A, rhs)
+    assert_allclose(rls.a, a_batch, rtol=1e-10)
+
+
+def test_scalar_rls_equals_batch_least_squares():
+    rng = np.random.default_rng(3)
+    u = rng.uniform(1e-4, 9e-4, 15) * rng.choice([-1.0, 1.0], 15)
+    d = 1.9 * u + rng.normal(0.0, 1e-5, 15)
+    est = ScalarRls(2.75, F_inv0=1e-5)
+    for ui, di in zip(u, d, strict=True):
+        est.update(float(ui), float(di))
+    b_batch = (1e-5 * 2.75 + np.sum(u * d)) / (1e-5 + np.sum(u * u))
+    assert_allclose(est.b_hat, b_batch, rtol=1e-10)
+
+
+history = st.lists(
+    st.tuples(
+        st.integers(1, 50),
+        st.floats(-1e6, 1e6, allow_nan=False),
+        st.one_of(st.floats(allow_nan=True, allow_infinity=True), st.just(0.0),
+                  st.floats(-1.0, 1.0)),
+    ),
+    max_size=40,
+)
+
+
+@settings(max_examples=150, deadline=None)
+@given(history=history, kind=st.sampled_from(["pwc", "papwc"]))
+def test_estimators_stay_finite_on_adversarial_histories(history, kind):
+    ctl = make_controller(ControllerSettings(kind=kind, t_p_max=0.05), T)
+    for n, f_p, d in history:
+        ctl.learn(n, f_p if f_p != 0.0 else 1.0, d)
+        est = ctl.estimates()
+        assert all(math.isfinite(v) and v > 0.0 for v in est.values()), est
+        n_plan, f_plan = ctl.plan_pulse(1e-3)
+        assert 1 <= n_plan <= ctl.n_max
+        assert math.isfinite(f_plan) and 0.0 < abs(f_plan) <= ctl.settings.f_p_max
+    if kind == "papwc":
+        p = ctl.estimator.P
+        assert p[0][1] == p[1][0]
+        assert p[0][0] > 0.0 and p[0][0] * p[1][1] - p[0][1] ** 2 > 0.0
+
+
+def test_pulse_that_does_not_move_raises_the_floor_and_skips_the_update():
+    ctl = PapwcController(ControllerSettings(kind="papwc"), T)
+    a_before = list(ctl.estimator.a)
+    ctl.learn(1, -120.0, 0.0)
+    assert ctl.estimator.a == a_before
+    assert ctl.f_p_floor == pytest.approx(120.0 * 1.05)
+    ctl.learn(1, 125.0, -1e-6)  # moved the wrong way: not a valid observation either
+    assert ctl.estimator.a == a_before
+
+
+def test_papwc_learns_physical_values_when_c_is_zero():
+    # With c = 0 the Coulomb model (4) is exact, so A1, A2 converge to 1/(2 m f_c), 1/(2 m).
+    m, f_c = 150.0, 100.0
+    ctl = PapwcController(ControllerSettings(kind="papwc", delta_inv=1e4), T)
+    for n, f in [(3, 300.0), (1, 250.0), (5, 180.0), (2, 290.0), (4, 140.0), (1, 300.0)]:
+        d = physics.pulse_displacement(f, n * T, m, f_c, 130.0, 0.0)
+        ctl.learn(n, f, d)
+    assert_allclose(ctl.estimator.a, [1 / (2 * m * f_c), 1 / (2 * m)], rtol=1e-6)
+    assert_allclose(ctl.f_c_hat, f_c, rtol=1e-6)
+
+
+def test_pwc_width_rounding_and_bound():
+    ctl = PwcController(ControllerSettings(kind="pwc", t_p_max=0.03), T)
+    b = ctl.estimator.b_hat
+    assert ctl.plan_pulse(b * 0.01**2) == (1, 300.0)  # exactly one sample
+    assert ctl.plan_pulse(-b * 0.0101**2) == (2, -300.0)  # rounded up
+    assert ctl.plan_pulse(1.0)[0] == 3  # bounded by t_p_max
+
+
+def _run(kind, t_p_max, K_c, tolerance, plant):
+    settings = ControllerSettings(kind=kind, t_p_max=t_p_max, K_c=K_c, tolerance=tolerance)
+    man = Maneuver(x_ref=0.01, T=T, duration=2.0, iterations=10)
+    result = run_controller(plant, settings, man)
+    assert not result.error
+    return [summarize(tr, tolerance) for tr in result.traces]
+
+
+@pytest.mark.slow
+def test_pwc_bounded_ends_in_the_d_min_limit_cycle(friction_plant_fmu):
+    plant = FmuSlave(friction_plant_fmu)
+    plant.set_parameters(TABLE_1)
+    try:
+        summaries = _run("pwc", 0.03, 0.5, 0.0, plant)
+    finally:
+        plant.close()
+    d_min = physics.d_min(300.0, T, 150.0, 100.0, 700.0)  # Eq. (19)
+    for s in (summaries[0], summaries[-1]):
+        assert s["limit_cycle"]
+        assert s["cycle_p2p_m"] == pytest.approx(d_min, rel=0.10)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("t_p_max", [0.03, math.inf])
+def test_papwc_tenth_iteration_settles_without_limit_cycle(friction_plant_fmu, t_p_max):
+    plant = FmuSlave(friction_plant_fmu)
+    plant.set_parameters(TABLE_1)
+    try:
+        summaries = _run("papwc", t_p_max, 0.8, 2e-5, plant)
+    finally:
+        plant.close()
+    last = summaries[9]
+    assert abs(last["final_error_m"]) <= 2e-5
+    assert not last["limit_cycle"]
+    assert math.isfinite(last["settle_time_s"])
+
+
+def test_paper_scenario_file_gives_the_same_results_on_fmu_and_physics(friction_plant_fmu):
+    sc = load_scenario(Path(__file__).parent.parent / "scenarios" / "paper.toml")
+    man = Maneuver(**{**sc.maneuver.__dict__, "iterations": 2})
+    for cs in sc.controllers:
+        fmu = FmuSlave(friction_plant_fmu)
+        fmu.set_parameters(sc.plant)
+        phys = PhysicsSlave()
+        phys.set_parameters(sc.plant)
+        try:
+            a = run_controller(fmu, cs, man)
+            b = run_controller(phys, cs, man)
+        finally:
+            fmu.close()
+        for ta, tb in zip(a.traces, b.traces, strict=True):
+            assert_allclose(ta.column("x"), tb.column("x"), rtol=0, atol=1e-12)
+            assert ta.column("u")[:-1] == tb.column("u")[:-1]
