@@ -300,7 +300,10 @@ def quantize(x: float, resolution: float) -> float:
     """
     if resolution <= 0.0:
         return x
-    return math.floor(x / resolution + 0.5) * resolution
+    q = x / resolution
+    n = math.floor(q)
+    # q - n is exact (Sterbenz), so ties are decided without the rounding of q + 0.5.
+    return (n + 1.0 if q - n >= 0.5 else n) * resolution
 
 
 def simulate(

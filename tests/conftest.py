@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from papwc.build.controller_fmu import build_pulse_controller
 from papwc.build.fmus import build_friction_plant, build_trivial
 
 
@@ -24,6 +25,7 @@ def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """
     out = tmp_path_factory.mktemp("fmus")
     build_friction_plant(out)
+    build_pulse_controller(out)
     build_trivial(out)
     return out
 
@@ -32,6 +34,12 @@ def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def friction_plant_fmu(fmu_dir: Path) -> Path:
     """Path of the built FrictionPlant.fmu."""
     return fmu_dir / "FrictionPlant.fmu"
+
+
+@pytest.fixture(scope="session")
+def pulse_controller_fmu(fmu_dir: Path) -> Path:
+    """Path of the built PulseController.fmu."""
+    return fmu_dir / "PulseController.fmu"
 
 
 @pytest.fixture(scope="session")

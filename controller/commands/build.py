@@ -12,14 +12,22 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
+from papwc.build.controller_fmu import build_pulse_controller
 from papwc.build.fmus import build_friction_plant, build_trivial
+from papwc.build.ssp import build_closed_loop_ssp
 
-HELP = "build the FMUs (FrictionPlant.fmu, PapwcTrivial.fmu) into a folder"
+HELP = (
+    "build the FMUs (FrictionPlant.fmu, PulseController.fmu, PapwcTrivial.fmu) and "
+    "ClosedLoop.ssp into a folder"
+)
 
 EPILOG = """\
 examples:
-  papwc build                      # writes build/FrictionPlant.fmu, build/PapwcTrivial.fmu
+  papwc build                      # writes build/FrictionPlant.fmu, build/PulseController.fmu,
+                                   # build/PapwcTrivial.fmu and build/ClosedLoop.ssp
   papwc build --out /tmp/fmus      # writes into /tmp/fmus
+  papwc build --scenario scenarios/long_move.toml --controller 2
+                                   # ClosedLoop.ssp for another scenario's 2nd controller
   fmpy simulate build/FrictionPlant.fmu --output-interval 0.01 --stop-time 1 \\
       --input-file scenarios/pulse_in.csv
 """
@@ -44,6 +52,7 @@ class BuildStep:
 #: What ``papwc build`` writes, in order.
 STEPS: list[BuildStep] = [
     BuildStep("FrictionPlant.fmu", build_friction_plant),
+    BuildStep("PulseController.fmu", build_pulse_controller),
     BuildStep("PapwcTrivial.fmu", build_trivial),
 ]
 
@@ -57,10 +66,35 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         metavar="DIR",
         help="folder to write into, created if needed (default: build/ in the current folder)",
     )
+    parser.add_argument(
+        "--scenario",
+        type=Path,
+        default=Path("scenarios") / "paper.toml",
+        metavar="FILE",
+        help="scenario whose plant, maneuver and controller ClosedLoop.ssp binds "
+        "(default: scenarios/paper.toml)",
+    )
+    parser.add_argument(
+        "--controller",
+        type=int,
+        default=None,
+        metavar="N",
+        help="[[controller]] table #N (1-based) for ClosedLoop.ssp; default: the first papwc table",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
     """Run every build step into ``args.out``; print each path written; return 0."""
     for build_step in STEPS:
         print(build_step.build(args.out))
+    index = None if args.controller is None else args.controller - 1
+    print(
+        build_closed_loop_ssp(
+            args.out,
+            args.scenario,
+            args.out / "FrictionPlant.fmu",
+            args.out / "PulseController.fmu",
+            index,
+        )
+    )
     return 0

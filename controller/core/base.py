@@ -14,9 +14,14 @@ The sequence within one maneuver:
    that rest is given to the estimator (subclass);
 3. *settled* once the mass is at rest with ``|e| <= tolerance``: the output is 0.
 
-Rest is detected from the measured position alone: unchanged over
-``rest_samples`` sample intervals. The mass is assumed at rest when a maneuver
-starts.
+Rest is detected from the measured position alone: unchanged (changed by at
+most ``rest_band``, 0 by default, more with a noisy sensor) over
+``rest_samples`` sample intervals. A pulse is judged not to have moved the mass
+only after ``rest_samples + 1`` unchanged intervals following its last sample,
+one more than a moving mass needs, so that a loop which delivers the force one
+sample late (a co-simulation master stepping plant and controller side by side)
+is not mistaken for a pulse that did not move. The mass is assumed at rest when
+a maneuver starts.
 """
 
 from __future__ import annotations
@@ -68,7 +73,7 @@ class Controller:
     # -- the interface -----------------------------------------------------------------
     def reset(self) -> None:
         """Start a new maneuver from rest; learned estimates are kept."""
-        self.mode = Mode.PULSE  # decided at the first sample
+        self.mode = Mode.SETTLED  # at rest; decided anew at the first sample
         self.pulses = 0
         self._first = True
         self._x_prev = math.nan
@@ -78,6 +83,8 @@ class Controller:
         self._f_pulse = 0.0
         self._n_pulse = 0
         self._x_start = 0.0
+        self._moved = False
+        self._waited = 0
         self.last_pulse: tuple[int, float] = (0, 0.0)
         self.last_d = 0.0
 
@@ -104,7 +111,7 @@ class Controller:
             self._v_hat = 0.0
         else:
             self._v_hat = (x_meas - self._x_prev) / self.T
-            if x_meas == self._x_prev:
+            if abs(x_meas - self._x_prev) <= self.settings.rest_band:
                 self._still += 1
             else:
                 self._still = 0
@@ -117,8 +124,14 @@ class Controller:
             return self._f_pulse
         if self.mode == Mode.PULSE:
             self.mode = Mode.WAIT
+            self._waited = 0
         if self.mode == Mode.WAIT:
-            if not at_rest:
+            self._waited += 1
+            if abs(x_meas - self._x_start) > self.settings.rest_band:
+                self._moved = True
+            if not at_rest or (
+                not self._moved and self._waited <= self.settings.rest_samples
+            ):
                 return 0.0
             d = x_meas - self._x_start
             self.last_d = d
@@ -140,6 +153,7 @@ class Controller:
         self._f_pulse = f_p
         self._pulse_left = n - 1
         self._x_start = x_meas
+        self._moved = False
         self._still = 0
         self.last_pulse = (n, f_p)
         return f_p
@@ -163,7 +177,7 @@ class Controller:
             float(self.mode), float(self.pulses), float(self._first), self._x_prev,
             float(self._still), float(self._pulse_left), self._f_pulse, float(self._n_pulse),
             self._x_start, float(self.last_pulse[0]), self.last_pulse[1], self.last_d,
-            self.f_p_floor, self._v_hat,
+            self.f_p_floor, self._v_hat, float(self._moved), float(self._waited),
         ]  # fmt: skip
 
     def set_state(self, values: list[float]) -> None:
@@ -174,6 +188,7 @@ class Controller:
         self._f_pulse, self._n_pulse, self._x_start = v[6], int(v[7]), v[8]
         self.last_pulse = (int(v[9]), v[10])
         self.last_d, self.f_p_floor, self._v_hat = v[11], v[12], v[13]
+        self._moved, self._waited = bool(v[14]), int(v[15])
 
     # -- shared pieces -----------------------------------------------------------------
     def _coarse(self, e: float) -> float:

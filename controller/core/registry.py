@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from .base import Controller
+from .exact import ExactController
 from .papwc import PapwcController
 from .pwc import PwcController
 from .settings import ControllerSettings
@@ -11,6 +12,7 @@ from .settings import ControllerSettings
 CONTROLLER_KINDS: dict[str, type[Controller]] = {
     PwcController.kind: PwcController,
     PapwcController.kind: PapwcController,
+    ExactController.kind: ExactController,
 }
 
 

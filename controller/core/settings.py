@@ -53,6 +53,10 @@ class ControllerSettings:
         ``m_est*omega**2`` and ``2*0.7*omega*m_est`` with omega = 10 rad/s.
     rest_samples : int
         Samples with unchanged measured position that count as "at rest".
+    rest_band : float
+        Largest change of the measured position, m, that still counts as
+        unchanged (0: exact equality, right for an ideal or quantized encoder;
+        a few standard deviations of the noise for a noisy sensor).
     """
 
     kind: str = "papwc"
@@ -73,6 +77,7 @@ class ControllerSettings:
     k_p: float | None = None
     k_d: float | None = None
     rest_samples: int = 1
+    rest_band: float = 0.0
     extra: dict = field(default_factory=dict)
 
     #: TOML keys that differ from the attribute names.
@@ -152,6 +157,8 @@ class ControllerSettings:
             bad("k_p", "must be > 0 N/m")
         if self.k_d is not None and self.k_d < 0.0:
             bad("k_d", "must be >= 0 N.s/m")
+        if self.rest_band < 0.0:
+            bad("rest_band", "must be >= 0 m")
         if int(self.rest_samples) != self.rest_samples or self.rest_samples < 1:
             bad("rest_samples", "must be a whole number >= 1")
         return out
