@@ -356,3 +356,11 @@ def _extract(context: BenchContext, tmp: str) -> str:
     from fmpy import extract
 
     return extract(str(context.fmu("FrictionPlant.fmu")), str(Path(tmp) / "plant"))
+
+
+@register_section("Battery: runs per second, local pool (1 and 2 workers) and Dask")
+def battery_throughput(context: BenchContext) -> list[Row]:
+    """Battery throughput; measured by :func:`papwc.battery.bench_section`."""
+    from papwc.battery import bench_section
+
+    return bench_section(context)

@@ -69,15 +69,18 @@ def load_scenario(path: str | os.PathLike) -> Scenario:
     ScenarioError
         With the file, the table and the field that are wrong, and what is allowed.
     """
-    path = Path(path)
+    return parse_scenario(read_toml(path, "scenario"), str(path))
+
+
+def read_toml(path: str | os.PathLike, what: str = "scenario") -> dict:
+    """Read a TOML file; a missing file or a syntax error is a ScenarioError naming it."""
     try:
         with open(path, "rb") as f:
-            data = tomllib.load(f)
+            return tomllib.load(f)
     except FileNotFoundError:
-        raise ScenarioError(f"{path}: no such scenario file") from None
+        raise ScenarioError(f"{path}: no such {what} file") from None
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
-    return parse_scenario(data, str(path))
 
 
 def parse_scenario(data: dict, source: str, allow: tuple[str, ...] = ()) -> Scenario:
