@@ -207,7 +207,9 @@ class FmuSlave:
             if name not in self.vars:
                 raise FmuError(f"{self.fmu_path}: has no parameter {name!r}")
         self._params.update(values)
-        self._snapshot = None
+        if self._snapshot is not None:
+            self._call("fmi2FreeFMUstate", self._fmu.freeFMUstate, self._snapshot)
+            self._snapshot = None
 
     def initialize(self, start_time: float = 0.0) -> None:
         self.time = float(start_time)
@@ -223,6 +225,8 @@ class FmuSlave:
             raise FmuError(f"fmi2ExitInitializationMode at t = {self.time!r} s refused the "
                            "parameters: " + "; ".join(refused))
         if self._can_state:
+            if self._snapshot is not None:
+                self._call("fmi2FreeFMUstate", self._fmu.freeFMUstate, self._snapshot)
             self._snapshot = self._call("fmi2GetFMUstate", self._fmu.getFMUstate)
 
     def restart(self, start_time: float = 0.0) -> None:
