@@ -18,20 +18,11 @@ spelling ``INF`` of an infinite start value. The FMU is then checked with
 
 from __future__ import annotations
 
-import re
-import shutil
-import sys
-import tempfile
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from fmpy.validation import validate_fmu
-
-from papwc.build.model_description import (
-    add_units,
-    edit_model_description,
-    ensure_default_experiment,
-)
+import papwc.core
+from papwc.build.fmus import build_pythonfmu
 from papwc.errors import BuildError
 from papwc.fmu_src import FMU_SRC_DIR
 
@@ -44,7 +35,7 @@ __all__ = [
 ]
 
 #: The controller package bundled into the FMU (``papwc.core``).
-CONTROLLER_CORE_DIR = Path(__file__).resolve().parent.parent / "controller" / "core"
+CONTROLLER_CORE_DIR = Path(papwc.core.__file__).resolve().parent
 
 #: Name of the bundled copy of ``papwc.core`` inside the FMU.
 CORE_PACKAGE = "papwc_pulse_core"
@@ -91,42 +82,6 @@ PULSE_CONTROLLER_OPTIONS: dict[str, bool] = {
 
 #: Outputs whose initial value is computed from the parameters.
 _CALCULATED_OUTPUTS = ("b_hat", "f_c_hat")
-
-#: Characters allowed in the path of the folder where the FMU is assembled.
-_SAFE_PATH = re.compile(r"[A-Za-z0-9_/]+")
-
-
-def _work_dir() -> Path:
-    """Create a temporary folder whose absolute path has only ASCII letters, digits, '_'."""
-    for base in (tempfile.gettempdir(), "/tmp", "/var/tmp"):
-        base_path = Path(base).resolve()
-        if _SAFE_PATH.fullmatch(str(base_path)) and base_path.is_dir():
-            return Path(tempfile.mkdtemp(prefix="papwc", dir=base_path))
-    raise BuildError(
-        f"no temporary folder with a path of ASCII letters, digits and '_' only "
-        f"(tried {tempfile.gettempdir()!r}, '/tmp', '/var/tmp'); set TMPDIR to such a folder"
-    )
-
-
-def _pythonfmu_builder():
-    """pythonfmu's ``FmuBuilder``, checked to come from an installed pythonfmu.
-
-    A pythonfmu FMU loaded into this process may have imported the copy of
-    ``pythonfmu`` bundled in its ``resources/``; that copy has no binaries to
-    put into a new FMU.
-    """
-    import pythonfmu
-    from pythonfmu import FmuBuilder
-
-    binaries = Path(pythonfmu.__file__).resolve().parent / "resources" / "binaries"
-    if not any(binaries.rglob("*.so")) and not any(binaries.rglob("*.dll")):
-        raise BuildError(
-            f"the pythonfmu imported in this process ({pythonfmu.__file__}) has no binaries "
-            f"in {binaries}: it is the copy bundled in an FMU loaded earlier; build "
-            "PulseController.fmu before loading any pythonfmu FMU, or in a new process"
-        )
-    return FmuBuilder
-
 
 def _complete_model_description(root: ET.Element) -> None:
     """Add ``InitialUnknowns`` for the calculated outputs; write infinite starts as ``INF``."""
@@ -180,69 +135,15 @@ def build_pulse_controller(out_dir: Path) -> Path:
     """
     model_dir = FMU_SRC_DIR / "PulseController"
     script = model_dir / "PulseController.py"
-    readme = model_dir / "readme.md"
-    for source in (script, readme, CONTROLLER_CORE_DIR / "__init__.py"):
-        if not source.is_file():
-            raise BuildError(f"cannot build PulseController.fmu: {source} does not exist")
-    builder = _pythonfmu_builder()
-    out_dir = Path(out_dir)
-    work = _work_dir()
-    saved_path = list(sys.path)
-    # A PulseController FMU loaded earlier in this process left its modules in
-    # sys.modules; set them aside so that the model is built from the sources.
-    loaded = {
-        name: sys.modules.pop(name)
-        for name in list(sys.modules)
-        if name in (script.stem, CORE_PACKAGE) or name.startswith(CORE_PACKAGE + ".")
-    }
-    saved_modules = set(sys.modules)
-    try:
-        src = work / "src"
-        src.mkdir()
-        shutil.copy2(script, src / script.name)
-        package = src / CORE_PACKAGE
-        shutil.copytree(
-            CONTROLLER_CORE_DIR, package, ignore=shutil.ignore_patterns("__pycache__", "*.pyc")
-        )
-        doc_dir = work / "doc"
-        doc_dir.mkdir()
-        shutil.copy2(readme, doc_dir / readme.name)
-        try:
-            built = builder.build_FMU(
-                src / script.name,
-                dest=work / "fmu",
-                project_files=[package],
-                documentation_folder=doc_dir,
-                **PULSE_CONTROLLER_OPTIONS,
-            )
-        except Exception as exc:  # pythonfmu raises what the model script raises
-            raise BuildError(
-                f"pythonfmu could not build PulseController.fmu from {script}: "
-                f"{type(exc).__name__}: {exc}"
-            ) from exc
-        built = Path(built)
-        add_units(built, PULSE_CONTROLLER_UNITS, PULSE_CONTROLLER_UNIT_DEFINITIONS)
-        edit_model_description(built, _complete_model_description)
-        ensure_default_experiment(built, 0.0, 1.0, 0.01)
-        problems = validate_fmu(str(built))
-        if problems:
-            raise BuildError(
-                f"{built.name} built from {script} is not valid: " + "; ".join(problems)
-            )
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-            target = out_dir / built.name
-            shutil.copyfile(built, target)
-        except OSError as exc:
-            raise BuildError(f"cannot write {built.name} into {out_dir}: {exc}") from exc
-        return target
-    finally:
-        # pythonfmu imports the model from the build folder; forget it so that the
-        # FMU, once loaded in this process, imports its own bundled copy.
-        sys.path[:] = saved_path
-        for name in set(sys.modules) - saved_modules:
-            module_file = getattr(sys.modules[name], "__file__", None) or ""
-            if module_file.startswith(str(work)):
-                del sys.modules[name]
-        sys.modules.update(loaded)
-        shutil.rmtree(work, ignore_errors=True)
+    return build_pythonfmu(
+        script,
+        out_dir,
+        project_files=[(CONTROLLER_CORE_DIR, CORE_PACKAGE)],
+        units=PULSE_CONTROLLER_UNITS,
+        unit_definitions=PULSE_CONTROLLER_UNIT_DEFINITIONS,
+        documentation=[model_dir / "readme.md"],
+        default_experiment=(0.0, 1.0, 0.01),
+        options=PULSE_CONTROLLER_OPTIONS,
+        edit=_complete_model_description,
+        shadowed_modules=(script.stem, CORE_PACKAGE),
+    )

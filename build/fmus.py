@@ -17,13 +17,17 @@ import re
 import shutil
 import sys
 import tempfile
-from collections.abc import Iterable, Mapping
+import xml.etree.ElementTree as ET
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 from fmpy.validation import validate_fmu
-from pythonfmu import FmuBuilder
 
-from papwc.build.model_description import add_units, ensure_default_experiment
+from papwc.build.model_description import (
+    add_units,
+    edit_model_description,
+    ensure_default_experiment,
+)
 from papwc.errors import BuildError
 from papwc.fmu_src import FMU_SRC_DIR
 
@@ -73,16 +77,38 @@ def _safe_temp_dir() -> Path:
     )
 
 
+def _pythonfmu_builder():
+    """pythonfmu's ``FmuBuilder``, checked to come from an installed pythonfmu.
+
+    A pythonfmu FMU loaded into this process may have imported the copy of
+    ``pythonfmu`` bundled in its ``resources/``; that copy has no binaries to
+    put into a new FMU.
+    """
+    import pythonfmu
+    from pythonfmu import FmuBuilder
+
+    binaries = Path(pythonfmu.__file__).resolve().parent / "resources" / "binaries"
+    if not any(binaries.rglob("*.so")) and not any(binaries.rglob("*.dll")):
+        raise BuildError(
+            f"the pythonfmu imported in this process ({pythonfmu.__file__}) has no binaries "
+            f"in {binaries}: it is the copy bundled in an FMU loaded earlier; build the "
+            "FMUs before loading any pythonfmu FMU, or in a new process"
+        )
+    return FmuBuilder
+
+
 def build_pythonfmu(
     script: Path,
     out_dir: Path,
     *,
-    project_files: Iterable[Path] = (),
+    project_files: Iterable[Path | tuple[Path, str]] = (),
     units: Mapping[str, str] | None = None,
     unit_definitions: Mapping[str, Mapping[str, int]] | None = None,
     documentation: Iterable[Path] = (),
     default_experiment: tuple[float, float, float] = (0.0, 1.0, 0.01),
     options: Mapping[str, bool] | None = None,
+    edit: Callable[[ET.Element], None] | None = None,
+    shadowed_modules: Iterable[str] = (),
 ) -> Path:
     """Build one pythonfmu FMU, add units and a default experiment, validate it.
 
@@ -93,8 +119,10 @@ def build_pythonfmu(
     out_dir : Path
         Folder the ``<modelIdentifier>.fmu`` is written to (created if needed;
         an existing FMU of that name is replaced).
-    project_files : iterable of Path
-        Files bundled into ``resources/`` beside the script (importable by name).
+    project_files : iterable of Path or (Path, str)
+        Files or folders bundled into ``resources/`` beside the script
+        (importable by name); ``(source, name)`` bundles ``source`` as ``name``
+        (e.g. a package folder under a name no other FMU uses).
     units : mapping of str to str, optional
         Variable name -> unit, see :func:`papwc.build.model_description.add_units`.
     unit_definitions : mapping, optional
@@ -105,6 +133,12 @@ def build_pythonfmu(
         Start time, stop time and step size (s) written if the model sets none.
     options : mapping of str to bool, optional
         CoSimulation capability flags; default :data:`STATE_OPTIONS`.
+    edit : callable, optional
+        ``edit(root)`` completes the model description (after the units).
+    shadowed_modules : iterable of str
+        Modules (with their submodules) that an FMU loaded earlier in this
+        process left in ``sys.modules``; they are set aside during the build so
+        that the model is built from the sources, and put back afterwards.
 
     Returns
     -------
@@ -118,20 +152,37 @@ def build_pythonfmu(
         cannot be completed, or ``fmpy`` reports a validation problem.
     """
     script = Path(script)
-    project_files = [Path(p) for p in project_files]
+    bundled = [(Path(p), Path(p).name) if isinstance(p, (str, Path)) else (Path(p[0]), p[1])
+               for p in project_files]
     documentation = [Path(p) for p in documentation]
-    for source in (script, *project_files, *documentation):
+    for source in (script, *documentation):
         if not source.is_file():
             raise BuildError(f"cannot build {script.stem}.fmu: source file {source} does not exist")
+    for source, _ in bundled:
+        if not source.exists():
+            raise BuildError(f"cannot build {script.stem}.fmu: source {source} does not exist")
+    builder = _pythonfmu_builder()
     out_dir = Path(out_dir)
     work = _safe_temp_dir()
     saved_path = list(sys.path)
+    shadowed = tuple(shadowed_modules)
+    loaded = {
+        name: sys.modules.pop(name)
+        for name in list(sys.modules)
+        if name in shadowed or name.startswith(tuple(m + "." for m in shadowed))
+    }
     saved_modules = set(sys.modules)
     try:
         src = work / "src"
         src.mkdir()
-        for source in (script, *project_files):
-            shutil.copy2(source, src / source.name)
+        shutil.copy2(script, src / script.name)
+        for source, name in bundled:
+            if source.is_dir():
+                shutil.copytree(
+                    source, src / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc")
+                )
+            else:
+                shutil.copy2(source, src / name)
         doc_dir = None
         if documentation:
             doc_dir = work / "doc"
@@ -140,10 +191,10 @@ def build_pythonfmu(
                 shutil.copy2(source, doc_dir / source.name)
         built_dir = work / "fmu"
         try:
-            built = FmuBuilder.build_FMU(
+            built = builder.build_FMU(
                 src / script.name,
                 dest=built_dir,
-                project_files=[src / p.name for p in project_files],
+                project_files=[src / name for _, name in bundled],
                 documentation_folder=doc_dir,
                 **dict(STATE_OPTIONS if options is None else options),
             )
@@ -154,6 +205,8 @@ def build_pythonfmu(
         built = Path(built)
         if units:
             add_units(built, units, unit_definitions)
+        if edit is not None:
+            edit_model_description(built, edit)
         ensure_default_experiment(built, *default_experiment)
         problems = validate_fmu(str(built))
         if problems:
@@ -175,6 +228,7 @@ def build_pythonfmu(
             module_file = getattr(sys.modules[name], "__file__", None) or ""
             if module_file.startswith(str(work)):
                 del sys.modules[name]
+        sys.modules.update(loaded)
         shutil.rmtree(work, ignore_errors=True)
 
 

@@ -49,6 +49,9 @@ class BuildStep:
     build: Callable[[Path], Path]
 
 
+#: Scenario whose PAPWC case ClosedLoop.ssp binds unless --scenario is given.
+DEFAULT_SSP_SCENARIO = Path("scenarios") / "paper.toml"
+
 #: What ``papwc build`` writes, in order.
 STEPS: list[BuildStep] = [
     BuildStep("FrictionPlant.fmu", build_friction_plant),
@@ -69,7 +72,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--scenario",
         type=Path,
-        default=Path("scenarios") / "paper.toml",
+        default=None,
         metavar="FILE",
         help="scenario whose plant, maneuver and controller ClosedLoop.ssp binds "
         "(default: scenarios/paper.toml)",
@@ -87,11 +90,17 @@ def run(args: argparse.Namespace) -> int:
     """Run every build step into ``args.out``; print each path written; return 0."""
     for build_step in STEPS:
         print(build_step.build(args.out))
+    scenario = args.scenario
+    if scenario is None:
+        scenario = DEFAULT_SSP_SCENARIO
+        if not scenario.is_file():
+            print(f"ClosedLoop.ssp not written: {scenario} not found here (give --scenario FILE)")
+            return 0
     index = None if args.controller is None else args.controller - 1
     print(
         build_closed_loop_ssp(
             args.out,
-            args.scenario,
+            scenario,
             args.out / "FrictionPlant.fmu",
             args.out / "PulseController.fmu",
             index,
