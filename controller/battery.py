@@ -1345,7 +1345,7 @@ def local_dask_cluster(n_workers: int = 1, nthreads: int = 1,
 
 # --- benchmark ------------------------------------------------------------------------------
 
-#: The battery of the benchmark: scenarios/robustness.toml with ``n`` draws.
+#: The battery of the benchmark: the PWC and PAPWC of scenarios/robustness.toml, ``n`` draws.
 BENCH_BATTERY = """\
 name = "bench"
 [plant]

@@ -83,7 +83,6 @@ class Controller:
         self._f_pulse = 0.0
         self._n_pulse = 0
         self._x_start = 0.0
-        self._moved = False
         self._waited = 0
         self.last_pulse: tuple[int, float] = (0, 0.0)
         self.last_d = 0.0
@@ -127,11 +126,10 @@ class Controller:
             self._waited = 0
         if self.mode == Mode.WAIT:
             self._waited += 1
-            if abs(x_meas - self._x_start) > self.settings.rest_band:
-                self._moved = True
-            if not at_rest or (
-                not self._moved and self._waited <= self.settings.rest_samples
-            ):
+            # A pulse response moves the mass one way only, so "moved" is read off
+            # the present position.
+            moved = abs(x_meas - self._x_start) > self.settings.rest_band
+            if not at_rest or (not moved and self._waited <= self.settings.rest_samples):
                 return 0.0
             d = x_meas - self._x_start
             self.last_d = d
@@ -153,7 +151,6 @@ class Controller:
         self._f_pulse = f_p
         self._pulse_left = n - 1
         self._x_start = x_meas
-        self._moved = False
         self._still = 0
         self.last_pulse = (n, f_p)
         return f_p
@@ -177,7 +174,7 @@ class Controller:
             float(self.mode), float(self.pulses), float(self._first), self._x_prev,
             float(self._still), float(self._pulse_left), self._f_pulse, float(self._n_pulse),
             self._x_start, float(self.last_pulse[0]), self.last_pulse[1], self.last_d,
-            self.f_p_floor, self._v_hat, float(self._moved), float(self._waited),
+            self.f_p_floor, self._v_hat, float(self._waited),
         ]  # fmt: skip
 
     def set_state(self, values: list[float]) -> None:
@@ -188,7 +185,7 @@ class Controller:
         self._f_pulse, self._n_pulse, self._x_start = v[6], int(v[7]), v[8]
         self.last_pulse = (int(v[9]), v[10])
         self.last_d, self.f_p_floor, self._v_hat = v[11], v[12], v[13]
-        self._moved, self._waited = bool(v[14]), int(v[15])
+        self._waited = int(v[14])
 
     # -- shared pieces -----------------------------------------------------------------
     def _coarse(self, e: float) -> float:
