@@ -14,7 +14,7 @@ HELP = "measure and print cost figures (per-call cost of the FMUs, ...)"
 EPILOG = """\
 examples:
   papwc bench --quick              # builds the FMUs into a temporary folder, fewer iterations
-  papwc bench                      # the full measurement (about 60 s)
+  papwc bench                      # the full measurement (about 80 s)
   papwc bench --fmu-dir build      # use FMUs already written by `papwc build`
 """
 
