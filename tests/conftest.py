@@ -6,8 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from papwc.build.controller_fmu import build_pulse_controller
-from papwc.build.fmus import build_friction_plant, build_trivial
+from papwc.fmubuild.fmus import build_all
 
 
 @pytest.fixture(scope="session")
@@ -24,9 +23,7 @@ def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     process puts its bundled ``pythonfmu`` copy into ``sys.modules``.
     """
     out = tmp_path_factory.mktemp("fmus")
-    build_friction_plant(out)
-    build_pulse_controller(out)
-    build_trivial(out)
+    build_all(out)
     return out
 
 

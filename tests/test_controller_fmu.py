@@ -24,12 +24,12 @@ from fmpy.fmi2 import (
 from fmpy.logging import addLoggerProxy
 from fmpy.validation import validate_fmu
 
-from papwc.build.controller_fmu import PULSE_CONTROLLER_UNITS
-from papwc.core import Mode, make_controller
-from papwc.core.settings import ControllerSettings
+
+from papwc.controllers import Mode, make_controller
+from papwc.controllers.settings import ControllerSettings
 from papwc.master import Maneuver, run_iteration
 from papwc.scenario import Scenario, load_scenario
-from papwc.slaves import FmuSlave, PhysicsSlave
+from papwc.master import FmuSlave, PhysicsSlave
 
 PROJECT_DIR = Path(__file__).resolve().parent.parent
 PAPER = PROJECT_DIR / "scenarios" / "paper.toml"

@@ -11,16 +11,18 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from papwc.core import make_controller
-from papwc.core.estimators import Rls2, ScalarRls
-from papwc.core.papwc import PapwcController, papwc_amplitude
-from papwc.core.pwc import PwcController, b_coulomb
-from papwc.core.settings import ControllerSettings
-from papwc.fmu_src import papwc_stickslip as physics
+from papwc.controllers import make_controller
+from papwc.controllers.estimators import Rls2, ScalarRls
+from papwc.controllers.papwc import PapwcController, papwc_amplitude
+from papwc.controllers.pwc import PwcController
+from papwc.model.pulse import b_coulomb
+from papwc.controllers.settings import ControllerSettings
+from papwc.analysis import paper
+from papwc.model.pulse import pulse_displacement
 from papwc.master import Maneuver, run_controller
-from papwc.recording import summarize
+from papwc.master import summarize
 from papwc.scenario import load_scenario
-from papwc.slaves import FmuSlave, PhysicsSlave
+from papwc.master import FmuSlave, PhysicsSlave
 
 TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
 T = 0.01
@@ -123,7 +125,7 @@ def test_papwc_learns_physical_values_when_c_is_zero():
     m, f_c = 150.0, 100.0
     ctl = PapwcController(ControllerSettings(kind="papwc", delta_inv=1e4), T)
     for n, f in [(3, 300.0), (1, 250.0), (5, 180.0), (2, 290.0), (4, 140.0), (1, 300.0)]:
-        d = physics.pulse_displacement(f, n * T, m, f_c, 130.0, 0.0)
+        d = pulse_displacement(f, n * T, m, f_c, 0.0)
         ctl.learn(n, f, d)
     assert_allclose(ctl.estimator.a, [1 / (2 * m * f_c), 1 / (2 * m)], rtol=1e-6)
     assert_allclose(ctl.f_c_hat, f_c, rtol=1e-6)
@@ -148,12 +150,12 @@ def _run(kind, t_p_max, K_c, tolerance, plant):
 @pytest.mark.slow
 def test_pwc_bounded_ends_in_the_d_min_limit_cycle(friction_plant_fmu):
     plant = FmuSlave(friction_plant_fmu)
-    plant.set_parameters(TABLE_1)
+    plant.set_start_values(TABLE_1)
     try:
         summaries = _run("pwc", 0.03, 0.5, 0.0, plant)
     finally:
         plant.close()
-    d_min = physics.d_min(300.0, T, 150.0, 100.0, 700.0)  # Eq. (19)
+    d_min = paper.d_min(300.0, T, 150.0, 100.0, 700.0)  # Eq. (19)
     for s in (summaries[0], summaries[-1]):
         assert s["limit_cycle"]
         assert s["cycle_p2p_m"] == pytest.approx(d_min, rel=0.10)
@@ -163,7 +165,7 @@ def test_pwc_bounded_ends_in_the_d_min_limit_cycle(friction_plant_fmu):
 @pytest.mark.parametrize("t_p_max", [0.03, math.inf])
 def test_papwc_tenth_iteration_settles_without_limit_cycle(friction_plant_fmu, t_p_max):
     plant = FmuSlave(friction_plant_fmu)
-    plant.set_parameters(TABLE_1)
+    plant.set_start_values(TABLE_1)
     try:
         summaries = _run("papwc", t_p_max, 0.8, 2e-5, plant)
     finally:
@@ -179,9 +181,9 @@ def test_paper_scenario_file_gives_the_same_results_on_fmu_and_physics(friction_
     man = Maneuver(**{**sc.maneuver.__dict__, "iterations": 2})
     for cs in sc.controllers:
         fmu = FmuSlave(friction_plant_fmu)
-        fmu.set_parameters(sc.plant)
+        fmu.set_start_values(sc.plant)
         phys = PhysicsSlave()
-        phys.set_parameters(sc.plant)
+        phys.set_start_values(sc.plant)
         try:
             a = run_controller(fmu, cs, man)
             b = run_controller(phys, cs, man)

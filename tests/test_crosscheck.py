@@ -8,7 +8,7 @@ import numpy as np
 from fmpy import simulate_fmu
 from fmpy.util import read_csv, read_ref_opt_file, validate_result
 
-from papwc.build.make_reference import write_reference
+from papwc.fmubuild.reference import write_reference
 
 TOL = 1e-12
 

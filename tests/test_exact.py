@@ -11,19 +11,19 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
-from papwc.core import CONTROLLER_KINDS, Mode, make_controller
-from papwc.core.exact import (
+from papwc.controllers import CONTROLLER_KINDS, Mode, make_controller
+from papwc.controllers.exact import (
     ExactController,
     PulseModelEstimator,
     pulse_amplitude,
     pulse_model,
 )
-from papwc.core.settings import ControllerSettings
+from papwc.controllers.settings import ControllerSettings
 from papwc.fmu_src import papwc_stickslip as physics
 from papwc.master import Maneuver, run_controller
-from papwc.recording import summarize
+from papwc.master import summarize
 from papwc.scenario import load_scenario
-from papwc.slaves import PhysicsSlave
+from papwc.master import PhysicsSlave
 
 TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
 T = 0.01

@@ -11,7 +11,7 @@ from libcosimpy.CosimManipulator import CosimManipulator
 from libcosimpy.CosimObserver import CosimObserver
 from libcosimpy.CosimSlave import CosimLocalSlave
 
-from papwc.fmu_src.papwc_stickslip import simulate
+from papwc.model.stickslip import simulate
 
 pytestmark = pytest.mark.libcosim
 

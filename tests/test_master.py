@@ -9,11 +9,11 @@ from pathlib import Path
 import pytest
 
 from papwc.cli import main
-from papwc.core.settings import ControllerSettings
+from papwc.controllers.settings import ControllerSettings
 from papwc.errors import FmuError, ScenarioError
 from papwc.master import Maneuver, run_controller, run_iteration
 from papwc.scenario import load_scenario
-from papwc.slaves import FmuSlave, PhysicsSlave
+from papwc.master import FmuSlave, PhysicsSlave
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -25,6 +25,7 @@ class ScriptedController:
         self.forces = list(forces)
         self.mode = 1
         self.pulses = 0
+        self.revision = 0
 
     def reset(self):
         pass
@@ -39,23 +40,23 @@ class ScriptedController:
 
 def test_fmu_discard_stops_the_run_and_keeps_what_was_recorded(friction_plant_fmu):
     plant = FmuSlave(friction_plant_fmu)
-    plant.set_parameters({"m": 150.0})
+    plant.set_start_values({"m": 150.0})
     try:
         plant.initialize()
         forces = [300.0] * 3 + [0.0] * 2 + [math.nan]
         trace = run_iteration(plant, ScriptedController(forces), Maneuver(duration=0.2))
     finally:
         plant.close()
-    assert len(trace.rows) == 6  # samples 0..5 recorded, the 6th step was refused
+    assert len(trace) == 6  # samples 0..5 recorded, the 6th step was refused
     assert "fmi2DoStep" in trace.error
     assert "t = 0.05" in trace.error
     assert "nan" in trace.error.lower()  # the FMU's log names the value
-    assert trace.rows[3][2] > 0.0  # the motion before the failure is kept
+    assert trace.column("x")[3] > 0.0  # the motion before the failure is kept
 
 
 def test_invalid_plant_parameter_is_refused_with_its_name(friction_plant_fmu):
     plant = FmuSlave(friction_plant_fmu)
-    plant.set_parameters({"f_s": 50.0})
+    plant.set_start_values({"f_s": 50.0})
     try:
         result = run_controller(plant, ControllerSettings(), Maneuver(iterations=2))
     finally:
@@ -88,7 +89,7 @@ def test_delayed_timing_applies_the_force_one_step_later():
 
 def test_iterations_restart_the_plant_and_carry_the_estimates(friction_plant_fmu):
     plant = FmuSlave(friction_plant_fmu)
-    plant.set_parameters({"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0})
+    plant.set_start_values({"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0})
     try:
         result = run_controller(plant, ControllerSettings(kind="papwc", t_p_max=0.03),
                                 Maneuver(duration=1.0, iterations=3))
@@ -96,9 +97,9 @@ def test_iterations_restart_the_plant_and_carry_the_estimates(friction_plant_fmu
         plant.close()
     assert not result.error
     for tr in result.traces:
-        assert tr.rows[0][2] == 0.0 and tr.rows[0][3] == 0.0  # starts at rest at 0
-    b_start = [tr.rows[0][9] for tr in result.traces]
-    b_end = [tr.rows[-1][9] for tr in result.traces]
+        assert tr.column("x")[0] == 0.0 and tr.column("v")[0] == 0.0  # starts at rest at 0
+    b_start = [tr.column("b_hat")[0] for tr in result.traces]
+    b_end = [tr.column("b_hat")[-1] for tr in result.traces]
     assert b_start[1] == b_end[0] and b_start[2] == b_end[1]
     assert b_start[0] != b_end[0]
 

@@ -12,13 +12,13 @@ import pytest
 from fmpy.ssp.simulation import simulate_ssp
 from fmpy.ssp.ssd import Parameter, ParameterSet, read_ssd
 
-from papwc.build.ssp import build_closed_loop_ssp, closed_loop_parameters, libcosim_step_size
-from papwc.core import make_controller
+from papwc.fmubuild.ssp import build_closed_loop_ssp, closed_loop_parameters, libcosim_step_size
+from papwc.controllers import make_controller
 from papwc.errors import BuildError
 from papwc.master import Maneuver, run_controller, run_iteration
-from papwc.recording import Trace
+from papwc.master import Trace
 from papwc.scenario import Scenario, load_scenario
-from papwc.slaves import PhysicsSlave
+from papwc.master import PhysicsSlave
 
 PROJECT_DIR = Path(__file__).resolve().parent.parent
 PAPER = PROJECT_DIR / "scenarios" / "paper.toml"

@@ -1,0 +1,2 @@
+"""The paper reproduced: its formulas (:mod:`.paper`), ``papwc reproduce`` (:mod:`.reproduce`)
+and the plots of runs (:mod:`.plots`)."""

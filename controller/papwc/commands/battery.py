@@ -1,0 +1,80 @@
+"""``papwc battery``: run sweeps and Monte Carlo batteries of a scenario in parallel.
+
+The battery file syntax is described in :mod:`papwc.battery`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+HELP = "run a battery (sweep and/or Monte Carlo) of a scenario on local processes or Dask"
+
+EPILOG = """\
+examples:
+  papwc battery scenarios/robustness.toml                 # all cores, results/robustness/
+  papwc battery scenarios/robustness.toml --workers 2 --out results/rob
+  papwc battery scenarios/robustness.toml --out results/rob --resume   # after Ctrl-C or a kill
+  papwc battery a.toml b.toml --out results/ab --quiet    # two batteries, one results.csv
+  dask scheduler --host 127.0.0.1 --port 8786 --no-dashboard &
+  dask worker tcp://127.0.0.1:8786 --nworkers 2 --nthreads 1 --no-dashboard &
+  papwc battery scenarios/robustness.toml --scheduler tcp://127.0.0.1:8786
+
+writes into the output folder: results.csv (one row per run, controller and
+iteration), runs.csv (every resolved parameter per run), summary.md, the plots
+final_error_<battery>.png, and journal.jsonl (finished runs, for --resume).
+exit code: 0 if every run succeeded in running, 1 if a run has status error,
+2 if a battery file or an option is wrong.
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the options of ``papwc battery`` to its subparser."""
+    parser.add_argument("files", nargs="+", metavar="FILE", help="battery files (TOML)")
+    parser.add_argument("--out", type=Path, default=None, metavar="DIR",
+                        help="output folder (default: results/NAME for one battery, "
+                             "results/battery for several)")
+    parser.add_argument("--workers", type=int, default=None, metavar="N",
+                        help="local worker processes (default: the number of cores)")
+    parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                        help="run on this Dask distributed scheduler instead of local processes")
+    parser.add_argument("--fmu", default=None, metavar="PATH",
+                        help="plant FMU (default: one built from the current sources: the "
+                             "checkout's build/FrictionPlant.fmu if current, else built "
+                             "into DIR/fmu/)")
+    mode = parser.add_mutually_exclusive_group()
+    mode.add_argument("--resume", action="store_true",
+                      help="continue the journal in DIR: finished runs are not computed again")
+    mode.add_argument("--overwrite", action="store_true",
+                      help="start afresh even if DIR holds the journal of a battery")
+    parser.add_argument("--quiet", action="store_true",
+                        help="no progress bar and no report on stdout")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the batteries; return 0, or 1 if any run has status error."""
+    from papwc.battery import BatteryError, load_battery, run_battery
+    from papwc.runner import ensure_plant_fmu
+
+    if args.workers is not None and args.workers < 1:
+        raise BatteryError(f"--workers {args.workers}: must be >= 1")
+    batteries = [load_battery(f) for f in args.files]
+    out = args.out
+    if out is None:
+        out = Path("results") / (batteries[0].name if len(batteries) == 1 else "battery")
+    fmu = ensure_plant_fmu(args.fmu, out)
+    outcome = run_battery(batteries, out, fmu, workers=args.workers, scheduler=args.scheduler,
+                          resume=args.resume, overwrite=args.overwrite,
+                          progress=not args.quiet)
+    if not args.quiet:
+        reused = outcome.runs - outcome.computed
+        print(f"{outcome.runs} runs ({outcome.computed} computed, {reused} from the journal) "
+              f"in {outcome.seconds:.1f} s; {len(outcome.failed)} with status error")
+        print("wrote " + ", ".join(str(p) for p in outcome.files))
+    for battery, run_id, message in outcome.failed[:10]:
+        print(f"error: {battery} {run_id}: {message}", file=sys.stderr)
+    if len(outcome.failed) > 10:
+        print(f"error: ... and {len(outcome.failed) - 10} more runs (see results.csv)",
+              file=sys.stderr)
+    return 1 if outcome.failed else 0

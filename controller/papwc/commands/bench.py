@@ -1,0 +1,45 @@
+"""``papwc bench``: print measured figures, one table per section of :mod:`papwc.bench`."""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+from pathlib import Path
+
+HELP = "measure and print cost figures (per-call cost of the FMUs, ...)"
+
+EPILOG = """\
+examples:
+  papwc bench --quick              # builds the FMUs into a temporary folder, fewer iterations
+  papwc bench                      # the full measurement (about 80 s)
+  papwc bench --fmu-dir build      # use FMUs already written by `papwc build`
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the options of ``papwc bench`` to its subparser."""
+    parser.add_argument(
+        "--quick", action="store_true", help="fewer iterations: a fast, less precise run"
+    )
+    parser.add_argument(
+        "--fmu-dir",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="folder with the FMUs written by `papwc build` (default: build them afresh "
+        "into a temporary folder)",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build the FMUs unless given, run every bench section, print the figures; return 0."""
+    from papwc.bench import BenchContext, run_sections
+    from papwc.fmubuild.fmus import build_all
+
+    if args.fmu_dir is not None:
+        run_sections(BenchContext(fmu_dir=args.fmu_dir, quick=args.quick))
+        return 0
+    with tempfile.TemporaryDirectory(prefix="papwcbench") as tmp:
+        build_all(Path(tmp))
+        run_sections(BenchContext(fmu_dir=Path(tmp), quick=args.quick))
+    return 0

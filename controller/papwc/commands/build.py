@@ -1,0 +1,73 @@
+"""``papwc build``: build the project's FMUs and ClosedLoop.ssp into a folder."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from papwc.errors import PapwcError
+
+HELP = (
+    "build the FMUs (FrictionPlant.fmu, PulseController.fmu, PapwcTrivial.fmu) and "
+    "ClosedLoop.ssp into a folder"
+)
+
+EPILOG = """\
+examples:
+  papwc build                      # in a checkout: writes build/FrictionPlant.fmu,
+                                   # build/PulseController.fmu, build/PapwcTrivial.fmu,
+                                   # build/ClosedLoop.ssp
+  papwc build --out /tmp/fmus      # writes into /tmp/fmus
+  papwc build --scenario scenarios/long_move.toml --controller 2
+                                   # ClosedLoop.ssp for another scenario's 2nd controller
+  fmpy simulate build/FrictionPlant.fmu --output-interval 0.01 --stop-time 1 \\
+      --input-file scenarios/pulse_in.csv --output-file pulse_out.csv
+"""
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Add the options of ``papwc build`` to its subparser."""
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        metavar="DIR",
+        help="folder to write into, created if needed (default: build/ of the papwc "
+        "checkout; required when papwc is installed from a wheel)",
+    )
+    parser.add_argument(
+        "--scenario",
+        type=Path,
+        default=None,
+        metavar="FILE",
+        help="scenario whose plant, maneuver and controller ClosedLoop.ssp binds "
+        "(default: the shipped scenarios/paper.toml)",
+    )
+    parser.add_argument(
+        "--controller",
+        type=int,
+        default=None,
+        metavar="N",
+        help="[[controller]] table #N (1-based) for ClosedLoop.ssp; default: the first papwc table",
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Build every FMU and the SSP into ``args.out``; print each path written; return 0."""
+    from papwc.fmubuild.fmus import build_all
+    from papwc.fmubuild.ssp import build_closed_loop_ssp
+    from papwc.resources import checkout_root, scenario_file
+
+    out = args.out
+    if out is None:
+        root = checkout_root()
+        if root is None:
+            raise PapwcError("--out DIR is required: papwc is not running from a checkout")
+        out = root / "build"
+    for path in build_all(out):
+        print(path)
+    scenario = args.scenario if args.scenario is not None else scenario_file("paper.toml")
+    index = None if args.controller is None else args.controller - 1
+    print(build_closed_loop_ssp(out, scenario, out / "FrictionPlant.fmu",
+                                out / "PulseController.fmu", index))
+    return 0

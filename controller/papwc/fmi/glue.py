@@ -1,0 +1,315 @@
+"""The FMI glue of the project's FMUs, written once: :class:`CheckedSlave`.
+
+Bundled into each FMU (under that FMU's own package name) beside the model
+layer; each model class (``fmu_src/<Model>/<Model>.py``) keeps only its
+variable table, its start-of-simulation and its step. The base class does the
+rest, the same way in every FMU:
+
+- declares the variables from the model layer's table (names, causality,
+  variability, initial, description; units and ranges are added to the model
+  description by the build);
+- refuses invalid parameters when initialization ends: one message per problem
+  (name, value, allowed range) logged with status Error, and every later
+  ``doStep`` returns Discard repeating them (an exception would be fmi2Fatal
+  with pythonfmu 0.7.0, which frees the instance and aborts libcosim);
+- refuses a parameter or an output set after initialization (logged, value
+  kept), and any step after ``fmi2Terminate``;
+- ``doStep`` returns Discard with a logged reason and the state untouched when
+  the model's step refuses (a non-finite input, a bad step size);
+- keeps the time of the last communication point;
+- gets, sets, serializes and deserializes the state; a state that does not
+  parse or does not belong to this FMU is refused before anything changes,
+  and the instance keeps working.
+
+pythonfmu 0.7.0 returns fmi2OK for a refused ``setReal`` or ``setFMUstate``
+(its only other outcome is fmi2Fatal); the refusal is in the log.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from typing import Any
+
+from pythonfmu import (
+    Boolean,
+    Fmi2Causality,
+    Fmi2Initial,
+    Fmi2Slave,
+    Fmi2Variability,
+    Integer,
+    Real,
+    String,
+)
+from pythonfmu.enums import Fmi2Status
+
+from ..model.variables import FMU_DEFAULT_SENTINEL, Constraint, Variable, problems
+
+__all__ = ["CheckedSlave"]
+
+_KINDS = {"Real": Real, "Integer": Integer, "Boolean": Boolean, "String": String}
+_PY = {"Real": float, "Integer": int, "Boolean": bool, "String": str}
+#: Key of the marker that names the FMU a state belongs to.
+_STATE_KEY = "papwc_fmu_state"
+
+
+class CheckedSlave(Fmi2Slave):
+    """Base of the project's FMUs (see the module docstring).
+
+    A subclass sets :attr:`VARIABLES` (and :attr:`CONSTRAINTS`), and implements
+    :meth:`start` (initialization has ended with valid parameters) and
+    :meth:`step` (advance; return ``None``, or the reason to refuse the step).
+    Variables are attributes named like the variables; parameters are read
+    only when initialization ends.
+    """
+
+    #: Every variable of the FMU, in the order of their value references.
+    VARIABLES: tuple[Variable, ...] = ()
+    #: Rules between parameters.
+    CONSTRAINTS: tuple[Constraint, ...] = ()
+    #: Further attributes that make up the state (besides the variables).
+    STATE: tuple[str, ...] = ()
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        #: Communication point at the end of the last step, s.
+        self.time = 0.0
+        #: True once initialization has ended (valid or not).
+        self._initialized = False
+        #: True once initialization has ended with valid parameters.
+        self._ready = False
+        self._terminated = False
+        #: Messages for the parameters refused when initialization ended.
+        self._problems: list[str] = []
+        for var in self.VARIABLES:
+            setattr(self, var.name, var.fmi_start)
+            self.register_variable(self._declare(var))
+        #: Declared variables by value reference, per type (fast get/set).
+        self._typed = {kind: {vr: v for vr, v in self.vars.items() if isinstance(v, cls)}
+                       for kind, cls in _KINDS.items()}
+
+    # -- declarations ------------------------------------------------------------------------
+    def _declare(self, var: Variable):
+        causality = Fmi2Causality[var.causality]
+        kwargs: dict[str, Any] = {
+            "causality": causality,
+            "variability": Fmi2Variability[var.fmi_variability],
+            "description": var.description,
+        }
+        if var.causality == "parameter":
+            kwargs["initial"] = Fmi2Initial.exact
+            kwargs["setter"] = self._parameter_setter(var)
+        elif var.causality == "output":
+            kwargs["initial"] = Fmi2Initial[var.initial or "exact"]
+            kwargs["setter"] = self._output_setter(var)
+        getter = self.output_getter(var)
+        if getter is not None:
+            kwargs["getter"] = getter
+        return _KINDS[var.type](var.name, **kwargs)
+
+    def output_getter(self, var: Variable):
+        """A getter for ``var`` other than its attribute (override), or None."""
+        return None
+
+    def parameter_set(self, name: str) -> None:
+        """Parameter ``name`` was set before initialization ended (override)."""
+
+    def _parameter_setter(self, var: Variable):
+        name = var.name
+
+        def set_parameter(value: Any) -> None:
+            if self._initialized:
+                self.log(f"{self.instance_name}: parameter {name} cannot be set after "
+                         f"initialization: {value!r} refused, it stays "
+                         f"{getattr(self, name)!r}", Fmi2Status.error)
+                return
+            setattr(self, name, value)
+            self.parameter_set(name)
+
+        return set_parameter
+
+    def _output_setter(self, var: Variable):
+        name = var.name
+
+        def refuse(value: Any) -> None:
+            self.log(f"{self.instance_name}: {name} is an output and cannot be set: "
+                     f"{value!r} refused", Fmi2Status.error)
+
+        return refuse
+
+    # -- values ------------------------------------------------------------------------------
+    # pythonfmu's own get/set methods test the type of every variable at every call;
+    # these look the variable up in a table of its type (a wrong type is a KeyError,
+    # which pythonfmu turns into fmi2Fatal as it does its own TypeError).
+    def get_real(self, vrs: list[int]) -> list[float]:
+        """Values of the Real variables ``vrs``."""
+        reals = self._typed["Real"]
+        return [reals[vr].getter() for vr in vrs]
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        """Set the Real variables ``vrs``."""
+        reals = self._typed["Real"]
+        for vr, value in zip(vrs, values, strict=True):
+            reals[vr].setter(value)
+
+    def get_integer(self, vrs: list[int]) -> list[int]:
+        """Values of the Integer variables ``vrs``."""
+        ints = self._typed["Integer"]
+        return [int(ints[vr].getter()) for vr in vrs]
+
+    def set_integer(self, vrs: list[int], values: list[int]) -> None:
+        """Set the Integer variables ``vrs``."""
+        ints = self._typed["Integer"]
+        for vr, value in zip(vrs, values, strict=True):
+            ints[vr].setter(value)
+
+    # -- parameters --------------------------------------------------------------------------
+    def parameter_values(self) -> dict[str, Any]:
+        """The parameters as the model layer reads them (``-1`` of an optional one -> None)."""
+        out = {}
+        for var in self.VARIABLES:
+            if var.causality == "parameter":
+                value = getattr(self, var.name)
+                if var.optional and value == FMU_DEFAULT_SENTINEL:
+                    value = None
+                out[var.name] = value
+        return out
+
+    def check(self) -> list[str]:
+        """One message per invalid parameter (override to add checks of a model's own)."""
+        optional = {v.name for v in self.VARIABLES if v.optional}
+        return [
+            f"parameter {message}" + ("; -1 selects the default" if name in optional else "")
+            for name, message in problems(
+                [v for v in self.VARIABLES if v.causality == "parameter"],
+                self.parameter_values(),
+                self.CONSTRAINTS,
+            )
+        ]
+
+    # -- to implement ------------------------------------------------------------------------
+    def start(self) -> None:
+        """Initialization has ended with valid parameters: set the state from them."""
+
+    def step(self, current_time: float, step_size: float) -> str | None:
+        """Advance over ``step_size`` (s); return None, or why the step is refused."""
+        raise NotImplementedError
+
+    # -- FMI ---------------------------------------------------------------------------------
+    def setup_experiment(
+        self, start_time: float, stop_time: float | None = None, tolerance: float | None = None
+    ) -> None:
+        """Take the start time (s) as the first communication point."""
+        self.time = start_time
+
+    def exit_initialization_mode(self) -> None:
+        """Check the parameters; refuse invalid ones (logged), else :meth:`start`."""
+        try:
+            found = self.check()
+        except Exception as exc:  # noqa: BLE001 - a check must not kill the instance
+            found = [f"parameters could not be checked: {type(exc).__name__}: {exc}"]
+        if not found:
+            try:
+                self.start()
+            except Exception as exc:  # noqa: BLE001
+                found = [f"the simulation could not start: {type(exc).__name__}: {exc}"]
+        self._problems = found
+        for problem in found:
+            self.log(f"{self.instance_name}: {problem}; initialization refused, doStep will "
+                     "return Discard", Fmi2Status.error)
+        self._initialized = True
+        self._ready = not found
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        """Advance by :meth:`step`; False (Discard, logged, state unchanged) if refused."""
+        if self._ready and not self._terminated:
+            reason = self.step(current_time, step_size)
+            if reason is None:
+                self.time = current_time + step_size
+                return True
+        elif self._terminated:
+            reason = "the simulation was terminated (fmi2Terminate)"
+        elif self._problems:
+            reason = "invalid parameters: " + "; ".join(self._problems)
+        else:
+            reason = "initialization has not ended (call exitInitializationMode first)"
+        self.log(f"{self.instance_name}: doStep(t = {current_time!r} s, h = {step_size!r} s) "
+                 f"refused: {reason}; the state is left as it was", Fmi2Status.discard)
+        return False
+
+    def terminate(self) -> None:
+        """End the simulation: later steps are refused."""
+        self._terminated = True
+
+    # -- state -------------------------------------------------------------------------------
+    def _state_names(self) -> list[str]:
+        return [v.name for v in self.VARIABLES] + list(self.STATE) + [
+            "time", "_initialized", "_ready", "_terminated", "_problems"]
+
+    def _get_fmu_state(self) -> dict[str, Any]:
+        """The complete state, a JSON-able dict marked with the model's name."""
+        fields = {name: getattr(self, name) for name in self._state_names()}
+        return {_STATE_KEY: type(self).__name__, "fields": self.encode_state(fields)}
+
+    def encode_state(self, fields: dict[str, Any]) -> dict[str, Any]:
+        """Turn attributes that are objects into JSON-able values (override)."""
+        return fields
+
+    def decode_state(self, fields: dict[str, Any]) -> dict[str, Any]:
+        """Inverse of :meth:`encode_state`; raise ValueError if the fields do not fit."""
+        return fields
+
+    def _set_fmu_state(self, state: Any) -> None:
+        """Restore a state from :meth:`_get_fmu_state`; refuse (logged) one that does not fit."""
+        try:
+            fields = self._checked_state(state)
+        except (ValueError, TypeError, KeyError) as exc:
+            self.log(f"{self.instance_name}: setFMUstate refused: {exc}; the instance keeps "
+                     "its state", Fmi2Status.error)
+            return
+        for name, value in fields.items():
+            setattr(self, name, value)
+        self.state_restored()
+
+    def state_restored(self) -> None:
+        """A state was restored (override to refresh what derives from it)."""
+
+    def _checked_state(self, state: Any) -> dict[str, Any]:
+        if not isinstance(state, dict):
+            raise ValueError(f"the state is a {type(state).__name__}, not a state of this FMU")
+        if "invalid" in state and len(state) == 1:
+            raise ValueError(str(state["invalid"]))
+        owner = state.get(_STATE_KEY)
+        if owner != type(self).__name__:
+            raise ValueError(f"the state belongs to {owner!r}, not to {type(self).__name__!r}")
+        fields = state.get("fields")
+        names = self._state_names()
+        if not isinstance(fields, dict) or sorted(fields) != sorted(names):
+            missing = sorted(set(names) - set(fields or {}))
+            raise ValueError(f"the state does not hold this FMU's fields (missing: {missing})")
+        by_name = {v.name: v for v in self.VARIABLES}
+        for name, var in by_name.items():
+            value = fields[name]
+            want = _PY[var.type]
+            ok = isinstance(value, want) or (want is float and isinstance(value, int)
+                                            and not isinstance(value, bool))
+            if not ok or (want is int and isinstance(value, bool)):
+                raise ValueError(f"field {name} = {value!r} is not a {var.type}")
+        if not isinstance(fields["time"], (int, float)) or not math.isfinite(fields["time"]):
+            raise ValueError(f"field time = {fields['time']!r} is not a finite number")
+        return self.decode_state(dict(fields))
+
+    @staticmethod
+    def _fmu_state_to_bytes(state: dict[str, Any]) -> bytes:
+        return json.dumps(state).encode("utf-8")
+
+    @staticmethod
+    def _fmu_state_from_bytes(state: bytes) -> dict[str, Any]:
+        """Parse serialized bytes; never raises (a bad state is refused by setFMUstate)."""
+        try:
+            value = json.loads(state.decode("utf-8"))
+        except (UnicodeDecodeError, ValueError) as exc:
+            return {"invalid": f"the serialized state is not one of this FMU ({exc})"}
+        if not isinstance(value, dict):
+            return {"invalid": "the serialized state is not one of this FMU"}
+        return value

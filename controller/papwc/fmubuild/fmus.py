@@ -1,0 +1,175 @@
+"""The project's FMUs: what each is built from (:data:`FMUS`), and building them.
+
+Each FMU is a folder of ``fmu_src/`` (the model script, its readme, a reference
+result) plus a bundle of the project's own packages, copied under a package
+name that no other FMU uses (pythonfmu FMUs in one process share one Python
+interpreter, and modules of the same name would shadow each other):
+
+================= ======================== ==========================================
+FMU               bundle package           bundled subpackages of papwc
+================= ======================== ==========================================
+FrictionPlant     ``papwc_friction_plant`` ``model`` (physics, variables), ``fmi``
+PulseController   ``papwc_pulse_controller`` ``model``, ``controllers``, ``fmi``
+PapwcTrivial      (none)                   (none: the floor ``papwc bench`` measures)
+================= ======================== ==========================================
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import papwc
+from papwc.errors import BuildError
+from papwc.fmubuild.model_description import read_model_description
+from papwc.fmubuild.pythonfmu_build import (
+    STATE_OPTIONS,
+    build_pythonfmu,
+    guid,
+    source_digest,
+)
+from papwc.model.plant import PLANT_VARIABLES
+from papwc.model.settings import (
+    CONTROLLER_INPUTS,
+    CONTROLLER_OUTPUTS,
+    CONTROLLER_SETTINGS,
+    SAMPLE_PERIOD,
+)
+from papwc.model.variables import Variable
+from papwc.resources import checkout_root, fmu_src_dir
+
+__all__ = [
+    "FMUS",
+    "FmuRecipe",
+    "build_all",
+    "build_fmu",
+    "current_fmu",
+    "fmu_digest",
+    "guid",
+    "is_current",
+    "recipe",
+]
+
+#: The folder of the papwc package (its subpackages are bundled).
+PACKAGE_DIR = Path(papwc.__file__).resolve().parent
+
+
+@dataclass(frozen=True)
+class FmuRecipe:
+    """What one FMU is built from.
+
+    Attributes
+    ----------
+    name : str
+        Model identifier; ``fmu_src/<name>/<name>.py`` is the script.
+    variables : tuple of Variable
+        Every variable the model declares.
+    package : str
+        Bundle package name ("" for none).
+    subpackages : tuple of str
+        Subpackages of papwc copied into the bundle.
+    options : dict
+        CoSimulation capability flags.
+    """
+
+    name: str
+    variables: tuple[Variable, ...]
+    package: str = ""
+    subpackages: tuple[str, ...] = ()
+    options: dict[str, bool] = field(default_factory=lambda: dict(STATE_OPTIONS))
+
+    @property
+    def folder(self) -> Path:
+        """The model's folder in fmu_src/."""
+        return fmu_src_dir() / self.name
+
+    @property
+    def script(self) -> Path:
+        """The model script."""
+        return self.folder / f"{self.name}.py"
+
+    @property
+    def bundle(self) -> dict[str, Path]:
+        """Subpackage name -> source folder."""
+        return {name: PACKAGE_DIR / name for name in self.subpackages}
+
+    @property
+    def documentation(self) -> list[Path]:
+        """The readme, when there is one."""
+        readme = self.folder / "readme.md"
+        return [readme] if readme.is_file() else []
+
+
+#: The FMUs ``papwc build`` writes, in order.
+FMUS: tuple[FmuRecipe, ...] = (
+    FmuRecipe("FrictionPlant", PLANT_VARIABLES, "papwc_friction_plant", ("model", "fmi")),
+    FmuRecipe(
+        "PulseController",
+        CONTROLLER_SETTINGS + (SAMPLE_PERIOD,) + CONTROLLER_INPUTS + CONTROLLER_OUTPUTS,
+        "papwc_pulse_controller",
+        ("model", "controllers", "fmi"),
+        {**STATE_OPTIONS, "canHandleVariableCommunicationStepSize": False},
+    ),
+    FmuRecipe(
+        "PapwcTrivial",
+        (
+            Variable("u", "Input value", "1", 0.0, causality="input"),
+            Variable("y", "Output value: the input at the last step", "1", 0.0,
+                     causality="output", initial="exact"),
+        ),
+    ),
+)
+
+
+def recipe(name: str) -> FmuRecipe:
+    """The recipe of FMU ``name`` (e.g. ``"FrictionPlant"``)."""
+    for r in FMUS:
+        if r.name == name:
+            return r
+    raise BuildError(f"no FMU named {name!r}; FMUs: " + ", ".join(r.name for r in FMUS))
+
+
+def _arguments(r: FmuRecipe) -> dict:
+    return {"variables": r.variables, "package": r.package or None, "bundle": r.bundle,
+            "documentation": r.documentation, "options": r.options}
+
+
+def fmu_digest(name: str) -> str:
+    """Digest of the sources FMU ``name`` would be built from now (its GUID is made of it)."""
+    r = recipe(name)
+    return source_digest(r.script, **_arguments(r))
+
+
+def build_fmu(name: str, out_dir: Path) -> Path:
+    """Build FMU ``name`` into ``out_dir``; return the path written."""
+    r = recipe(name)
+    return build_pythonfmu(r.script, out_dir, **_arguments(r))
+
+
+def is_current(path: Path, name: str) -> bool:
+    """Whether ``path`` is FMU ``name`` built from the sources as they are now."""
+    try:
+        found = read_model_description(path).get("guid")
+    except BuildError:
+        return False
+    return found == guid(fmu_digest(name))
+
+
+def current_fmu(name: str, out_dir: Path) -> Path:
+    """FMU ``name`` built from the current sources, building it only if needed.
+
+    The checkout's ``build/<name>.fmu`` (what ``papwc build`` wrote) if it is
+    current, else ``out_dir/<name>.fmu``, built there if missing or stale.
+    """
+    root = checkout_root()
+    if root is not None and is_current(root / "build" / f"{name}.fmu", name):
+        return root / "build" / f"{name}.fmu"
+    path = Path(out_dir) / f"{name}.fmu"
+    if not is_current(path, name):
+        build_fmu(name, out_dir)
+    return path
+
+
+def build_all(out_dir: Path) -> list[Path]:
+    """Build every FMU of :data:`FMUS` into ``out_dir``; return the paths written."""
+    return [build_fmu(r.name, out_dir) for r in FMUS]

@@ -1,0 +1,261 @@
+"""Build one FMI 2.0 Co-Simulation FMU with pythonfmu, reproducibly.
+
+:func:`build_pythonfmu` is the recipe every FMU of the project goes through:
+
+1. assemble, in a fresh temporary folder whose path has only ASCII letters,
+   digits and ``_`` (pythonfmu 0.7.0 hosts crash on other percent-encoded
+   characters in the extraction path), the model script and its bundle: a
+   package of the script's own name holding copies of the project's
+   subpackages (``model``, ``fmi``, ``controllers``), so that FMUs loaded into
+   one process never share a module;
+2. build with ``pythonfmu.FmuBuilder.build_FMU``;
+3. complete the model description from the variables' metadata
+   (:func:`papwc.fmubuild.model_description.complete_model_description`), with
+   a GUID that is a digest of everything bundled, and rewrite the archive
+   reproducibly: the same sources give the same bytes;
+4. check the result with ``fmpy.validation.validate_fmu`` and copy it into the
+   output folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import shutil
+import sys
+import tempfile
+import uuid
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+
+from papwc.errors import BuildError
+from papwc.fmubuild.model_description import complete_model_description, rewrite_fmu
+from papwc.model.variables import Variable
+
+__all__ = ["STATE_OPTIONS", "build_pythonfmu", "guid", "source_digest"]
+
+#: CoSimulation capability flags set on every FMU of the project unless told otherwise.
+STATE_OPTIONS: dict[str, bool] = {
+    "canHandleVariableCommunicationStepSize": True,
+    "canGetAndSetFMUstate": True,
+    "canSerializeFMUstate": True,
+}
+
+#: Characters allowed in the path of the folder where an FMU is assembled.
+_SAFE_PATH = re.compile(r"[A-Za-z0-9_/]+")
+#: Files never bundled.
+_IGNORE = shutil.ignore_patterns("__pycache__", "*.pyc", "*.pyo")
+
+
+def _safe_temp_dir() -> Path:
+    """Create a temporary folder whose absolute path has only ASCII letters, digits, '_'."""
+    for base in (tempfile.gettempdir(), "/tmp", "/var/tmp"):
+        base_path = Path(base).resolve()
+        if _SAFE_PATH.fullmatch(str(base_path)) and base_path.is_dir():
+            return Path(tempfile.mkdtemp(prefix="papwc", dir=base_path))
+    raise BuildError(
+        f"no temporary folder with a path of ASCII letters, digits and '_' only "
+        f"(tried {tempfile.gettempdir()!r}, '/tmp', '/var/tmp'); set TMPDIR to such a folder"
+    )
+
+
+def _pythonfmu_builder():
+    """pythonfmu's ``FmuBuilder``, checked to come from an installed pythonfmu.
+
+    A pythonfmu FMU loaded into this process may have imported the copy of
+    ``pythonfmu`` bundled in its ``resources/``; that copy has no binaries to
+    put into a new FMU.
+    """
+    import pythonfmu
+    from pythonfmu import FmuBuilder
+
+    binaries = Path(pythonfmu.__file__).resolve().parent / "resources" / "binaries"
+    if not any(binaries.rglob("*.so")) and not any(binaries.rglob("*.dll")):
+        raise BuildError(
+            f"the pythonfmu imported in this process ({pythonfmu.__file__}) has no binaries "
+            f"in {binaries}: it is the copy bundled in an FMU loaded earlier; build the "
+            "FMUs before loading any pythonfmu FMU, or in a new process"
+        )
+    return FmuBuilder
+
+
+def _files(folder: Path) -> list[Path]:
+    return sorted(p for p in folder.rglob("*") if p.is_file()
+                  and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".pyo"))
+
+
+def source_digest(
+    script: Path,
+    *,
+    variables: Sequence[Variable],
+    package: str | None = None,
+    bundle: Mapping[str, Path] | None = None,
+    documentation: Iterable[Path] = (),
+    default_experiment: tuple[float, float, float] = (0.0, 1.0, 0.01),
+    options: Mapping[str, bool] | None = None,
+) -> str:
+    """SHA-256 (hex) of everything :func:`build_pythonfmu` builds an FMU from.
+
+    Covers the script, every bundled file (by its place in the bundle), the
+    documentation, the variables' metadata, the options and the pythonfmu
+    version; the arguments are those of :func:`build_pythonfmu`.
+    """
+    import pythonfmu
+
+    bundle = dict(bundle or {})
+    options = dict(STATE_OPTIONS if options is None else options)
+    extra = repr((package, sorted(options.items()), list(variables), default_experiment))
+
+    h = hashlib.sha256()
+
+    def add(label: str, data: bytes) -> None:
+        h.update(label.encode() + b"\0" + len(data).to_bytes(8, "little") + data)
+
+    add("script:" + Path(script).name, Path(script).read_bytes())
+    for name, folder in sorted(bundle.items()):
+        for path in _files(Path(folder)):
+            add(f"bundle:{name}/{path.relative_to(folder).as_posix()}", path.read_bytes())
+    for path in sorted(Path(p) for p in documentation):
+        add("doc:" + path.name, path.read_bytes())
+    add("extra", extra.encode())
+    add("pythonfmu", pythonfmu.__version__.encode())
+    return h.hexdigest()
+
+
+def guid(digest: str) -> str:
+    """The GUID of an FMU built from sources of digest ``digest`` (see :func:`source_digest`)."""
+    return "{" + str(uuid.UUID(digest[:32])) + "}"
+
+
+def build_pythonfmu(
+    script: Path,
+    out_dir: Path,
+    *,
+    variables: Sequence[Variable],
+    package: str | None = None,
+    bundle: Mapping[str, Path] | None = None,
+    documentation: Iterable[Path] = (),
+    default_experiment: tuple[float, float, float] = (0.0, 1.0, 0.01),
+    options: Mapping[str, bool] | None = None,
+) -> Path:
+    """Build one pythonfmu FMU, complete its model description, validate it.
+
+    Parameters
+    ----------
+    script : Path
+        The model script; its ``Fmi2Slave`` class name is the model identifier.
+    out_dir : Path
+        Folder the ``<modelIdentifier>.fmu`` is written to (created if needed;
+        an existing FMU of that name is replaced).
+    variables : sequence of Variable
+        Metadata of every variable the model declares.
+    package : str, optional
+        Name of the bundle package in ``resources/`` (the script imports it).
+    bundle : mapping of str to Path, optional
+        Subpackage name -> source folder, copied into ``package``.
+    documentation : iterable of Path
+        Files put into the FMU's ``documentation/`` folder.
+    default_experiment : (float, float, float)
+        Start time, stop time and step size (s) written if the model sets none.
+    options : mapping of str to bool, optional
+        CoSimulation capability flags; default :data:`STATE_OPTIONS`.
+
+    Returns
+    -------
+    Path
+        The FMU written.
+
+    Raises
+    ------
+    BuildError
+        If a source file is missing, pythonfmu fails, the model description
+        cannot be completed, or ``fmpy`` reports a validation problem.
+    """
+    from fmpy.validation import validate_fmu
+
+    script = Path(script)
+    bundle = dict(bundle or {})
+    documentation = [Path(p) for p in documentation]
+    options = dict(STATE_OPTIONS if options is None else options)
+    for source in (script, *documentation):
+        if not source.is_file():
+            raise BuildError(f"cannot build {script.stem}.fmu: source file {source} does not exist")
+    for source in bundle.values():
+        if not Path(source).is_dir():
+            raise BuildError(f"cannot build {script.stem}.fmu: source {source} does not exist")
+    if bundle and not package:
+        raise BuildError(f"cannot build {script.stem}.fmu: a bundle needs a package name")
+    digest = source_digest(script, variables=variables, package=package, bundle=bundle,
+                           documentation=documentation, default_experiment=default_experiment,
+                           options=options)
+    builder = _pythonfmu_builder()
+    out_dir = Path(out_dir)
+    work = _safe_temp_dir()
+    saved_path = list(sys.path)
+    shadowed = tuple(m for m in (script.stem, package) if m)
+    loaded = {
+        name: sys.modules.pop(name)
+        for name in list(sys.modules)
+        if name in shadowed or name.startswith(tuple(m + "." for m in shadowed))
+    }
+    saved_modules = set(sys.modules)
+    try:
+        src = work / "src"
+        src.mkdir()
+        shutil.copy2(script, src / script.name)
+        project_files = []
+        if package:
+            target = src / package
+            target.mkdir()
+            (target / "__init__.py").write_text(
+                f'"""The papwc code bundled into {script.stem}.fmu (model layer, glue)."""\n')
+            for name, folder in sorted(bundle.items()):
+                shutil.copytree(folder, target / name, ignore=_IGNORE)
+            project_files.append(target)
+        doc_dir = None
+        if documentation:
+            doc_dir = work / "doc"
+            doc_dir.mkdir()
+            for source in documentation:
+                shutil.copy2(source, doc_dir / source.name)
+        try:
+            built = builder.build_FMU(
+                src / script.name,
+                dest=work / "fmu",
+                project_files=project_files,
+                documentation_folder=doc_dir,
+                **options,
+            )
+        except Exception as exc:  # pythonfmu raises what the model script raises
+            raise BuildError(
+                f"pythonfmu could not build an FMU from {script}: {type(exc).__name__}: {exc}"
+            ) from exc
+        built = Path(built)
+        rewrite_fmu(built, lambda root: complete_model_description(
+            root, variables, guid=guid(digest), default_experiment=default_experiment,
+            where=built.name))
+        problems = validate_fmu(str(built))
+        if problems:
+            raise BuildError(
+                f"{built.name} built from {script} is not valid: " + "; ".join(problems)
+            )
+        try:
+            out_dir.mkdir(parents=True, exist_ok=True)
+            target = out_dir / built.name
+            tmp = target.with_name(target.name + ".tmp")
+            shutil.copyfile(built, tmp)
+            tmp.chmod(0o644)
+            tmp.replace(target)
+        except OSError as exc:
+            raise BuildError(f"cannot write {built.name} into {out_dir}: {exc}") from exc
+        return target
+    finally:
+        # pythonfmu imports the model from the build folder; forget it so that an
+        # FMU loaded later in this process imports its own bundled copy.
+        sys.path[:] = saved_path
+        for name in set(sys.modules) - saved_modules:
+            module_file = getattr(sys.modules[name], "__file__", None) or ""
+            if module_file.startswith(str(work)):
+                del sys.modules[name]
+        sys.modules.update(loaded)
+        shutil.rmtree(work, ignore_errors=True)

@@ -1,0 +1,344 @@
+"""Build ``ClosedLoop.ssp``: plant and pulse controller as one SSP 1.0 system.
+
+The archive holds ``SystemStructure.ssd`` and the two FMUs in ``resources/``:
+
+- component ``plant`` (``resources/FrictionPlant.fmu``) and component
+  ``controller`` (``resources/PulseController.fmu``);
+- connections ``plant.x_meas -> controller.x_meas`` (the encoder output: what a
+  real controller sees; it equals ``x`` with the ideal encoder,
+  ``x_resolution = 0``) and ``controller.u -> plant.u``;
+- inline parameter bindings (``ssd:ParameterValues``) for the plant
+  (``m``, ``f_c``, ``f_s``, ``c``, ``x_resolution``; ``x0 = v0 = 0``) and for the
+  controller (``kind``, every setting of the scenario's ``[[controller]]``
+  table, the sample period ``T`` and the reference ``x_ref``, an input held
+  constant by the binding);
+- a ``DefaultExperiment`` from 0 s to the maneuver's duration (``n_steps * T``,
+  the samples the Python master runs), with the
+  Open Simulation Platform annotation ``osp:FixedStepAlgorithm`` whose
+  ``baseStepSize`` is ``T``, so that libcosim runs the system without being
+  given a step size.
+
+A master that steps both components side by side at ``T`` (libcosim's
+fixed-step algorithm) gives the plant over ``[t_k, t_(k+1)]`` the force
+computed from ``x_meas(t_k - T)``: the Python master's ``timing = "delayed"``.
+
+libcosim applies the bindings and the annotation
+(``libcosimpy.CosimExecution.CosimExecution.from_ssp_file``). fmpy's
+``fmpy.ssp.simulation.simulate_ssp`` reads the structure but applies no
+bindings (they can be passed as its ``parameter_set``, names prefixed with the
+component) and cannot set String variables.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+
+from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, settings_for_kind
+from papwc.errors import BuildError, PapwcError
+from papwc.fmubuild.model_description import read_model_description
+from papwc.model.plant import PLANT_INPUTS, PLANT_OUTPUTS, SCENARIO_PLANT_FIELDS
+from papwc.model.settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
+from papwc.model.units import UNIT_DEFINITIONS
+from papwc.model.variables import FMU_DEFAULT_SENTINEL
+from papwc.scenario import Scenario, load_scenario
+
+__all__ = [
+    "CONNECTIONS",
+    "CONTROLLER",
+    "PLANT",
+    "build_closed_loop_ssp",
+    "closed_loop_parameters",
+    "default_controller_index",
+    "libcosim_step_size",
+]
+
+#: Component names in the SSP.
+PLANT = "plant"
+CONTROLLER = "controller"
+
+#: ``(start component, start connector, end component, end connector)``.
+CONNECTIONS: tuple[tuple[str, str, str, str], ...] = (
+    (PLANT, "x_meas", CONTROLLER, "x_meas"),
+    (CONTROLLER, "u", PLANT, "u"),
+)
+
+#: Connectors declared per component: name -> (kind, type, unit), from the model layer.
+_CONNECTORS: dict[str, dict[str, tuple[str, str, str | None]]] = {
+    component: {v.name: (v.causality, v.type, v.unit if v.type == "Real" else None)
+                for v in signals}
+    for component, signals in (
+        (PLANT, PLANT_INPUTS + PLANT_OUTPUTS),
+        (CONTROLLER, CONTROLLER_INPUTS[:2] + CONTROLLER_OUTPUTS),
+    )
+}
+
+_NAMESPACES = {
+    "xmlns:ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+    "xmlns:ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+    "xmlns:ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+    "xmlns:osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
+}
+
+
+def default_controller_index(scenario: Scenario) -> int:
+    """Index of the first ``kind = "papwc"`` table of ``scenario``, else 0."""
+    for i, settings in enumerate(scenario.controllers):
+        if settings.kind == "papwc":
+            return i
+    return 0
+
+
+def libcosim_step_size(T: float) -> float:
+    """The number to write as libcosim's ``baseStepSize`` for a sample period ``T`` (s).
+
+    libcosim converts seconds to whole nanoseconds by truncation; the value
+    returned is ``T`` or the next larger double, whichever truncates to
+    ``round(T * 1e9)`` ns.
+
+    Raises
+    ------
+    BuildError
+        If ``T`` is not a whole number of nanoseconds (to a relative 1e-9).
+    """
+    ns = round(T * 1e9)
+    if ns < 1 or abs(ns * 1e-9 - T) > 1e-9 * T:
+        raise BuildError(
+            f"sample period T = {T!r} s is not a whole number of nanoseconds; libcosim "
+            "steps in whole nanoseconds and the controller refuses any other step"
+        )
+    value = T
+    while int(value * 1e9) < ns:
+        value = math.nextafter(value, math.inf)
+    return value
+
+
+def closed_loop_parameters(
+    scenario: Scenario, controller_index: int
+) -> dict[str, dict[str, float | int | str]]:
+    """Parameter values of both components for one controller of ``scenario``.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        A validated scenario.
+    controller_index : int
+        Index of the ``[[controller]]`` table (0-based).
+
+    Returns
+    -------
+    dict
+        ``{"plant": {...}, "controller": {...}}``: variable name -> value, in SI
+        units, for the settings the controller's kind reads. ``None`` settings are
+        given as :data:`papwc.model.variables.FMU_DEFAULT_SENTINEL`; an
+        infinite ``t_p_max`` is left out (the controller FMU's start value is
+        infinity, and an SSP reader need not parse ``INF``).
+    """
+    if not 0 <= controller_index < len(scenario.controllers):
+        raise BuildError(
+            f"{scenario.source}: controller_index = {controller_index!r}: the scenario has "
+            f"{len(scenario.controllers)} [[controller]] table(s), index 0 to "
+            f"{len(scenario.controllers) - 1}"
+        )
+    settings: ControllerSettings = scenario.controllers[controller_index]
+    plant: dict[str, float | int | str] = {
+        name: float(scenario.plant[name]) for name in SCENARIO_PLANT_FIELDS
+    }
+    plant["x0"] = 0.0
+    plant["v0"] = 0.0
+    controller: dict[str, float | int | str] = {}
+    for name in settings_for_kind(settings.kind):
+        var = SETTINGS_BY_NAME[name]
+        value = settings.get(name)
+        if value is None:
+            value = FMU_DEFAULT_SENTINEL
+        if var.type == "Integer":
+            controller[name] = int(value)
+        elif var.type == "String":
+            controller[name] = str(value)
+        elif not (var.inf_ok and math.isinf(value)):
+            controller[name] = float(value)
+    controller["T"] = float(scenario.maneuver.T)
+    controller["x_ref"] = float(scenario.maneuver.x_ref)
+    return {PLANT: plant, CONTROLLER: controller}
+
+
+def _check_fmu(path: Path, component: str, names: set[str]) -> None:
+    """Raise BuildError unless the FMU at ``path`` has every variable in ``names``."""
+    if not path.is_file():
+        raise BuildError(f"cannot build ClosedLoop.ssp: {component} FMU {path} does not exist")
+    root = read_model_description(path)
+    have = {sv.get("name") for sv in root.iter("ScalarVariable")}
+    missing = sorted(names - have)
+    if missing:
+        raise BuildError(
+            f"cannot build ClosedLoop.ssp: {path} ({component}) has no variable(s) {missing}"
+        )
+
+
+def _number(value: float) -> str:
+    """``value`` as an XML double that parses back to the same float."""
+    return repr(float(value))
+
+
+def _ssd(
+    scenario: Scenario, controller_index: int, parameters: dict, sources: dict[str, str]
+) -> ET.Element:
+    """The ``ssd:SystemStructureDescription`` element of the closed loop."""
+    settings = scenario.controllers[controller_index]
+    label = scenario.labels[controller_index]
+    root = ET.Element(
+        "ssd:SystemStructureDescription",
+        {**_NAMESPACES, "version": "1.0", "name": "ClosedLoop"},
+    )
+    system = ET.SubElement(
+        root,
+        "ssd:System",
+        name="ClosedLoop",
+        description=(
+            f"FrictionPlant under PulseController ({settings.kind}, {label}) of scenario "
+            f"{scenario.name!r}: x_ref = {scenario.maneuver.x_ref!r} m, "
+            f"T = {scenario.maneuver.T!r} s"
+        ),
+    )
+    elements = ET.SubElement(system, "ssd:Elements")
+    units_used: set[str] = set()
+    for component in (PLANT, CONTROLLER):
+        element = ET.SubElement(
+            elements,
+            "ssd:Component",
+            name=component,
+            type="application/x-fmu-sharedlibrary",
+            source=sources[component],
+        )
+        connectors = ET.SubElement(element, "ssd:Connectors")
+        for name, (kind, typ, unit) in _CONNECTORS[component].items():
+            connector = ET.SubElement(connectors, "ssd:Connector", name=name, kind=kind)
+            typed = ET.SubElement(connector, f"ssc:{typ}")
+            if unit is not None:
+                typed.set("unit", unit)
+                units_used.add(unit)
+        bindings = ET.SubElement(element, "ssd:ParameterBindings")
+        binding = ET.SubElement(bindings, "ssd:ParameterBinding")
+        values = ET.SubElement(binding, "ssd:ParameterValues")
+        parameter_set = ET.SubElement(
+            values, "ssv:ParameterSet", version="1.0", name=f"{component}_parameters"
+        )
+        params = ET.SubElement(parameter_set, "ssv:Parameters")
+        for name, value in parameters[component].items():
+            parameter = ET.SubElement(params, "ssv:Parameter", name=name)
+            if isinstance(value, str):
+                ET.SubElement(parameter, "ssv:String", value=value)
+            elif isinstance(value, int):
+                ET.SubElement(parameter, "ssv:Integer", value=str(value))
+            else:
+                ET.SubElement(parameter, "ssv:Real", value=_number(value))
+    connections = ET.SubElement(system, "ssd:Connections")
+    for start_element, start_connector, end_element, end_connector in CONNECTIONS:
+        ET.SubElement(
+            connections,
+            "ssd:Connection",
+            startElement=start_element,
+            startConnector=start_connector,
+            endElement=end_element,
+            endConnector=end_connector,
+        )
+    units = ET.SubElement(root, "ssd:Units")
+    for unit in sorted(units_used):
+        element = ET.SubElement(units, "ssc:Unit", name=unit)
+        exponents = {k: str(e) for k, e in UNIT_DEFINITIONS[unit].items()}
+        ET.SubElement(element, "ssc:BaseUnit", exponents)
+    experiment = ET.SubElement(
+        root,
+        "ssd:DefaultExperiment",
+        startTime="0.0",
+        stopTime=_number(scenario.maneuver.n_steps * scenario.maneuver.T),
+    )
+    annotations = ET.SubElement(experiment, "ssd:Annotations")
+    annotation = ET.SubElement(annotations, "ssc:Annotation", type="com.opensimulationplatform")
+    algorithm = ET.SubElement(annotation, "osp:Algorithm")
+    ET.SubElement(
+        algorithm,
+        "osp:FixedStepAlgorithm",
+        baseStepSize=_number(libcosim_step_size(scenario.maneuver.T)),
+    )
+    return root
+
+
+def build_closed_loop_ssp(
+    out_dir: Path,
+    scenario_path: Path,
+    plant_fmu: Path,
+    controller_fmu: Path,
+    controller_index: int | None = None,
+) -> Path:
+    """Write ``ClosedLoop.ssp``: FrictionPlant under PulseController for one scenario.
+
+    Parameters
+    ----------
+    out_dir : Path
+        Output folder, created if needed; an existing ``ClosedLoop.ssp`` there
+        is replaced.
+    scenario_path : Path
+        Scenario file (TOML); its ``[plant]`` and ``[maneuver]`` tables and one
+        ``[[controller]]`` table give the parameter bindings.
+    plant_fmu, controller_fmu : Path
+        ``FrictionPlant.fmu`` and ``PulseController.fmu``, copied into the
+        archive's ``resources/``.
+    controller_index : int, optional
+        Index (0-based) of the ``[[controller]]`` table; default: the first
+        table of kind ``"papwc"`` (in ``scenarios/paper.toml``, PAPWC with
+        ``t_p_max = 0.03`` s), or the first table if there is none.
+
+    Returns
+    -------
+    Path
+        ``out_dir / "ClosedLoop.ssp"``.
+
+    Raises
+    ------
+    BuildError
+        If the scenario is invalid, the index out of range, an FMU missing or
+        without the variables bound or connected, or the archive cannot be
+        written.
+    """
+    plant_fmu = Path(plant_fmu)
+    controller_fmu = Path(controller_fmu)
+    try:
+        scenario = load_scenario(scenario_path)
+    except PapwcError as exc:
+        raise BuildError(f"cannot build ClosedLoop.ssp: {exc}") from exc
+    if controller_index is None:
+        controller_index = default_controller_index(scenario)
+    parameters = closed_loop_parameters(scenario, controller_index)
+    fmus = {PLANT: plant_fmu, CONTROLLER: controller_fmu}
+    for component, path in fmus.items():
+        names = set(parameters[component]) | set(_CONNECTORS[component])
+        _check_fmu(path, component, names)
+    sources = {PLANT: "resources/FrictionPlant.fmu", CONTROLLER: "resources/PulseController.fmu"}
+    root = _ssd(scenario, controller_index, parameters, sources)
+    ET.indent(root, space="  ")
+    ssd_bytes = ET.tostring(root, encoding="UTF-8", xml_declaration=True)
+
+    out_dir = Path(out_dir)
+    target = out_dir / "ClosedLoop.ssp"
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        fd, tmp_name = tempfile.mkstemp(prefix="ClosedLoop", suffix=".ssp", dir=out_dir)
+        os.close(fd)
+    except OSError as exc:
+        raise BuildError(f"cannot write ClosedLoop.ssp into {out_dir}: {exc}") from exc
+    try:
+        with zipfile.ZipFile(tmp_name, "w", zipfile.ZIP_DEFLATED) as archive:
+            archive.writestr("SystemStructure.ssd", ssd_bytes)
+            for component, path in fmus.items():
+                archive.write(path, sources[component])
+        os.replace(tmp_name, target)
+    except OSError as exc:
+        Path(tmp_name).unlink(missing_ok=True)
+        raise BuildError(f"cannot write {target}: {exc}") from exc
+    return target

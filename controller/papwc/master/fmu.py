@@ -1,0 +1,414 @@
+"""An FMI 2.0 Co-Simulation FMU as a slave of the master (:class:`FmuSlave`).
+
+fmpy reads the model description, extracts the FMU, loads its library and
+instantiates it; the calls of every step (``fmi2SetReal``, ``fmi2DoStep``,
+``fmi2GetReal``, ...) then go straight to the library's functions with
+arguments prepared once (value-reference arrays and value buffers), without
+fmpy's per-call wrappers. Any FMU works: FrictionPlant.fmu, PulseController.fmu
+or another tool's.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from collections import deque
+from collections.abc import Callable, Mapping, Sequence
+from ctypes import (
+    CFUNCTYPE,
+    byref,
+    c_char_p,
+    c_double,
+    c_int,
+    c_size_t,
+    c_uint,
+    c_void_p,
+    cast,
+)
+from pathlib import Path
+from typing import Any
+
+from papwc.errors import FmuError
+
+__all__ = ["FmuSlave"]
+
+#: fmi2Status values.
+_STATUS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
+#: Log messages kept per instance (the most recent).
+_LOG_KEPT = 200
+
+_C_TYPES = {"Real": c_double, "Integer": c_int, "Enumeration": c_int, "Boolean": c_int}
+
+
+def _text(value: Any) -> str:
+    """A logger argument (bytes, str or NULL) as text."""
+    if value is None:
+        return ""
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    return str(value)
+
+
+class FmuSlave:
+    """One instance of an FMI 2.0 Co-Simulation FMU.
+
+    The FMU is extracted once (into a temporary folder whose path has only
+    ASCII letters and digits) and its library stays loaded; :meth:`restart`
+    re-creates the state right after initialization (from an FMU state taken
+    then, when the FMU can get and set its state, else by a new instance).
+    Every state the slave takes is freed (when the start values change, on
+    :meth:`close`).
+
+    Every FMI call that returns Discard, Error or Fatal raises
+    :class:`~papwc.errors.FmuError` naming the time, the call and the FMU's
+    last log messages.
+
+    Parameters
+    ----------
+    fmu_path : path
+        The ``.fmu`` file.
+    name : str
+        Instance name passed to fmi2Instantiate.
+    unzip_dir : path, optional
+        An already extracted copy to use (it is not deleted).
+    restart_input : str, optional
+        An Integer input whose change starts a new run of the FMU with what it
+        has learned (PulseController.fmu's ``maneuver``): :meth:`restart`
+        increments it instead of restoring the initial state.
+    """
+
+    def __init__(
+        self,
+        fmu_path: str | os.PathLike,
+        name: str = "plant",
+        unzip_dir: str | os.PathLike | None = None,
+        restart_input: str | None = None,
+    ) -> None:
+        from fmpy import extract, read_model_description
+
+        self.name = name
+        self.fmu_path = Path(fmu_path)
+        self.values: list[Any] = []
+        self.log: deque[str] = deque(maxlen=_LOG_KEPT)
+        self.time = 0.0
+        self._fmu = None
+        self._snapshot = None
+        self._start: dict[str, Any] = {}
+        self._watched: list[str] = []
+        self._owns_dir = False
+        if not self.fmu_path.is_file():
+            raise FmuError(f"FMU file {str(self.fmu_path)!r} does not exist")
+        try:
+            self.md = read_model_description(str(self.fmu_path))
+        except Exception as exc:  # fmpy raises plain Exceptions for broken files
+            raise FmuError(f"{self.fmu_path}: cannot read modelDescription.xml: {exc}") from exc
+        if self.md.coSimulation is None:
+            raise FmuError(f"{self.fmu_path}: not a Co-Simulation FMU")
+        self.vars = {v.name: v for v in self.md.modelVariables}
+        self.restart_input = restart_input
+        self._restarts = 0
+        if restart_input is not None and (
+                restart_input not in self.vars or self.vars[restart_input].causality != "input"
+                or self.vars[restart_input].type != "Integer"):
+            raise FmuError(f"{self.fmu_path}: has no Integer input {restart_input!r}")
+        if unzip_dir is None:
+            unzip_dir = tempfile.mkdtemp(prefix="papwcfmu")
+            self._owns_dir = True
+            try:
+                extract(str(self.fmu_path), unzipdir=unzip_dir)
+            except Exception as exc:  # a broken archive
+                shutil.rmtree(unzip_dir, ignore_errors=True)
+                raise FmuError(f"{self.fmu_path}: cannot extract: {exc}") from exc
+        self.unzip_dir = str(unzip_dir)
+        self._can_state = bool(self.md.coSimulation.canGetAndSetFMUstate)
+        self._refresh: Callable[[], None] = lambda: None
+        self._load()
+        self._instantiate()
+
+    # -- the FMI library -------------------------------------------------------------------
+    def _load(self) -> None:
+        """Load the library, make the callbacks, bind the functions called at every step."""
+        from fmpy.fmi1 import calloc, free
+        from fmpy.fmi2 import (
+            FMU2Slave,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
+        from fmpy.logging import addLoggerProxy
+
+        def logger(component, instance_name, status, category, message) -> None:
+            label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+            self.log.append(f"[{label}] {_text(category)}: {_text(message)}")
+
+        callbacks = fmi2CallbackFunctions()
+        callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(byref(callbacks))
+        self._callbacks = callbacks
+        self._logger = logger
+        self._fmu = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=self.unzip_dir,
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=self.name,
+        )
+        #: The instance (fmi2Component); the step functions hold this object, so a
+        #: new instance only changes its value.
+        self._c = c_void_p(None)
+        # The functions called at every step, as bare function pointers: no argtypes,
+        # so ctypes passes the prepared ctypes objects without converting them
+        # (fmpy's own function objects keep their argtypes).
+        dll = self._fmu.dll
+        bare = CFUNCTYPE(c_int)
+        self._fn: dict[str, Any] = {}
+        for kind in ("Real", "Integer", "Boolean"):
+            for verb in ("Get", "Set"):
+                address = cast(getattr(dll, f"fmi2{verb}{kind}"), c_void_p).value
+                self._fn[f"{verb}{kind}"] = bare(address)
+        self._fn["DoStep"] = bare(cast(dll.fmi2DoStep, c_void_p).value)
+        self._do_step = self._fn["DoStep"]
+        self._h = c_double(0.0)
+
+    def _instantiate(self) -> None:
+        self._call("fmi2Instantiate", lambda: self._fmu.instantiate(
+            callbacks=self._callbacks, loggingOn=True))
+        self._c.value = self._fmu.component
+
+    def _call(self, name: str, fn: Callable[[], Any]) -> Any:
+        from fmpy.fmi1 import FMICallException
+
+        try:
+            return fn()
+        except FMICallException as exc:
+            raise FmuError(self._failure(name, _STATUS[exc.status]
+                                         if 0 <= exc.status < 5 else exc.status)) from exc
+        except Exception as exc:  # fmpy raises plain Exceptions
+            raise FmuError(f"{self.name}: {name} at t = {self.time!r} s failed: {exc}") from exc
+
+    def _failure(self, name: str, status: Any) -> str:
+        log = "; ".join(list(self.log)[-5:]) or "(the FMU logged nothing)"
+        return (f"{self.name}: {name} at t = {self.time!r} s returned {status}; "
+                f"FMU log: {log}")
+
+    def _check(self, name: str, status: int) -> None:
+        if status > 1:
+            raise FmuError(self._failure(name, _STATUS[status] if status < 5 else status))
+
+    # -- the slave interface ---------------------------------------------------------------
+    def variables(self) -> Mapping[str, str]:
+        """Causality of every variable of the FMU."""
+        return {name: v.causality for name, v in self.vars.items()}
+
+    def set_start_values(self, values: Mapping[str, Any]) -> None:
+        """Parameters and input start values, applied at every (re)initialization."""
+        for name in values:
+            if name not in self.vars:
+                raise FmuError(f"{self.fmu_path}: has no variable {name!r}")
+        self._start.update(values)
+        self._free_snapshot()
+
+    def _set_now(self, values: Mapping[str, Any]) -> None:
+        for name, value in values.items():
+            var = self.vars[name]
+            vr = (c_uint * 1)(var.valueReference)
+            if var.type == "String":
+                buf = (c_char_p * 1)(str(value).encode("utf-8"))
+                self._call("fmi2SetString", lambda vr=vr, buf=buf: self._fmu.fmi2SetString(
+                    self._fmu.component, vr, 1, buf))
+                continue
+            ctype = _C_TYPES[var.type]
+            buf = (ctype * 1)(float(value) if ctype is c_double else int(value))
+            fn = self._fn["Set" + ("Integer" if var.type == "Enumeration" else var.type)]
+            self._check(f"fmi2Set{var.type}({name})", fn(self._c, vr, c_size_t(1), buf))
+
+    def watch(self, names: Sequence[str]) -> list[int]:
+        """Read ``names`` into :attr:`values` after each step; return their indexes."""
+        for name in names:
+            if name not in self.vars:
+                raise FmuError(f"{self.fmu_path}: has no variable {name!r}")
+            if self.vars[name].type not in _C_TYPES:
+                raise FmuError(f"{self.fmu_path}: variable {name!r} of type "
+                               f"{self.vars[name].type} cannot be watched")
+            if name not in self._watched:
+                self._watched.append(name)
+        self._prepare_reads()
+        return [self._watched.index(n) for n in names]
+
+    def _prepare_reads(self) -> None:
+        groups: dict[str, list[int]] = {}
+        for i, name in enumerate(self._watched):
+            t = self.vars[name].type
+            groups.setdefault("Integer" if t == "Enumeration" else t, []).append(i)
+        reads = []
+        for kind, positions in groups.items():
+            n = len(positions)
+            vr = (c_uint * n)(*(self.vars[self._watched[i]].valueReference for i in positions))
+            buf = (_C_TYPES[kind] * n)()
+            reads.append((self._fn["Get" + kind], vr, c_size_t(n), buf, positions, kind))
+        comp, check = self._c, self._check
+        if len(reads) == 1 and reads[0][5] == "Real":
+            get, vr, n, buf, _, _ = reads[0]
+
+            def refresh() -> None:
+                status = get(comp, vr, n, buf)
+                if status > 1:
+                    check("fmi2GetReal", status)
+                self.values = buf[:]
+        else:
+            size = len(self._watched)
+
+            def refresh() -> None:
+                values: list[Any] = [None] * size
+                for get, vr, n, buf, positions, kind in reads:
+                    status = get(comp, vr, n, buf)
+                    if status > 1:
+                        check(f"fmi2Get{kind}", status)
+                    for i, value in zip(positions, buf, strict=True):
+                        values[i] = bool(value) if kind == "Boolean" else value
+                self.values = values
+
+        self._refresh = refresh
+
+    def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        """A function ``set(*values)`` that sets the inputs ``names`` (Real, Integer, Boolean)."""
+        kinds = set()
+        for name in names:
+            if name not in self.vars:
+                raise FmuError(f"{self.fmu_path}: has no variable {name!r}")
+            if self.vars[name].causality != "input":
+                raise FmuError(f"{self.fmu_path}: variable {name!r} is not an input")
+            kinds.add(self.vars[name].type)
+        comp, check = self._c, self._check
+        # Watched inputs show the value last set (watch them before asking for the setter).
+        shown = [(j, self._watched.index(name)) for j, name in enumerate(names)
+                 if name in self._watched]
+        if kinds == {"Real"}:
+            n = len(names)
+            vr = (c_uint * n)(*(self.vars[name].valueReference for name in names))
+            buf = (c_double * n)()
+            n_c = c_size_t(n)
+            set_real = self._fn["SetReal"]
+            if n == 1 and len(shown) <= 1:
+                index = shown[0][1] if shown else None
+
+                def set_one(value: Any) -> None:
+                    buf[0] = value
+                    status = set_real(comp, vr, n_c, buf)
+                    if status > 1:
+                        check("fmi2SetReal", status)
+                    if index is not None:
+                        self.values[index] = value
+
+                return set_one
+
+            def set_reals(*values: Any) -> None:
+                buf[:] = values
+                status = set_real(comp, vr, n_c, buf)
+                if status > 1:
+                    check("fmi2SetReal", status)
+                for j, i in shown:
+                    self.values[i] = values[j]
+
+            return set_reals
+
+        def set_any(*values: Any) -> None:
+            self._set_now(dict(zip(names, values, strict=True)))
+            for j, i in shown:
+                self.values[i] = values[j]
+
+        return set_any
+
+    def initialize(self, start_time: float = 0.0) -> None:
+        """setupExperiment, the start values, enter and exit initialization mode.
+
+        Raises
+        ------
+        FmuError
+            If a call fails, or if the FMU logged an Error or Fatal message at
+            exitInitializationMode (FrictionPlant.fmu and PulseController.fmu
+            refuse invalid parameters that way).
+        """
+        self.time = float(start_time)
+        self._call("fmi2SetupExperiment", lambda: self._fmu.setupExperiment(
+            startTime=start_time))
+        self._set_now(self._start)
+        self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
+        n_log = len(self.log)
+        self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+        new = list(self.log)[n_log:] if n_log < _LOG_KEPT else list(self.log)
+        refused = [m for m in new if m.startswith(("[Error]", "[Fatal]"))]
+        if refused:
+            raise FmuError(f"{self.name}: fmi2ExitInitializationMode at t = {self.time!r} s "
+                           "refused the parameters: " + "; ".join(refused))
+        self._restarts = 0
+        if self._can_state and self.restart_input is None:
+            self._free_snapshot()
+            self._snapshot = self._call("fmi2GetFMUstate", self._fmu.getFMUstate)
+        self._refresh()
+
+    def restart(self, start_time: float = 0.0) -> None:
+        """Back to the state right after initialization (same start values).
+
+        With ``restart_input``, that input is incremented instead: the FMU starts
+        anew keeping what it has learned.
+        """
+        if self.restart_input is not None:
+            self.time = float(start_time)
+            self._restarts += 1
+            base = int(self._start.get(self.restart_input, 0))
+            self._set_now({self.restart_input: base + self._restarts})
+            self._refresh()
+            return
+        if self._snapshot is not None:
+            self.time = float(start_time)
+            self._call("fmi2SetFMUstate", lambda: self._fmu.setFMUstate(self._snapshot))
+            self._refresh()
+            return
+        self._call("fmi2FreeInstance", lambda: self._fmu.fmi2FreeInstance(self._fmu.component))
+        self._instantiate()
+        self.initialize(start_time)
+
+    def do_step(self, t: float, h: float) -> None:
+        """fmi2DoStep from ``t`` over ``h`` (s), then read the watched variables."""
+        self.time = t
+        step_size = self._h
+        if step_size.value != h:
+            step_size.value = h
+        status = self._do_step(self._c, c_double(t), step_size, 1)
+        if status > 1:
+            self._check("fmi2DoStep", status)
+        self._refresh()
+
+    def _free_snapshot(self) -> None:
+        if self._snapshot is not None and self._fmu is not None:
+            snapshot, self._snapshot = self._snapshot, None
+            self._call("fmi2FreeFMUstate", lambda: self._fmu.freeFMUstate(snapshot))
+
+    def close(self) -> None:
+        """Free the state taken, terminate, free the instance, remove the extracted copy."""
+        fmu, self._fmu = self._fmu, None
+        if fmu is not None:
+            try:
+                if self._snapshot is not None:
+                    fmu.freeFMUstate(self._snapshot)
+                    self._snapshot = None
+                fmu.terminate()
+            except Exception:  # noqa: BLE001 - closing a failed instance must not raise
+                pass
+            try:
+                fmu.freeInstance()
+            except Exception:  # noqa: BLE001
+                pass
+        if self._owns_dir:
+            shutil.rmtree(self.unzip_dir, ignore_errors=True)
+            self._owns_dir = False
+
+    def __enter__(self) -> FmuSlave:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

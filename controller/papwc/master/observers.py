@@ -1,0 +1,145 @@
+"""Observers: they watch slaves' variables and record them; they never change anything.
+
+An observer implements :class:`Observer`: the execution calls ``setup`` once
+(the observer asks to watch variables there), ``initialized`` when the slaves
+are (re)initialized, ``step_complete`` after every step, ``step_failed`` when a
+step fails and ``finished`` at the end of a run.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Protocol
+
+from papwc.master.slave import Slave
+from papwc.master.trace import Trace
+
+if TYPE_CHECKING:
+    from papwc.master.execution import Execution
+
+__all__ = ["Observer", "TraceObserver"]
+
+
+class Observer(Protocol):
+    """What the execution calls on an observer."""
+
+    def setup(self, execution: Execution) -> None:
+        """Ask to watch variables (``slave.watch``) before the slaves are initialized."""
+        ...
+
+    def initialized(self, t: float) -> None:
+        """The slaves are (re)initialized at time ``t`` (s)."""
+        ...
+
+    def step_complete(self, k: int, t: float) -> None:
+        """Step ``k`` is done; the slaves are at ``t = t_(k+1)`` (s)."""
+        ...
+
+    def step_failed(self, k: int, t: float) -> None:
+        """Step ``k`` from ``t`` (s) failed; the slave that failed is unchanged."""
+        ...
+
+    def finished(self, k: int, t: float) -> None:
+        """The run ended after ``k`` steps, at ``t`` (s)."""
+        ...
+
+
+#: Trace columns read from the plant at each communication point (state at t_k).
+_STATE = ("x", "v", "x_meas")
+#: Trace columns read from the controller after its sample at t_k.
+_CONTROLLER = ("mode", "pulses", "b_hat", "f_c_hat")
+
+
+class TraceObserver:
+    """Records one iteration of a closed loop as a :class:`~papwc.master.trace.Trace`.
+
+    Row k holds the plant's ``x``, ``v``, ``x_meas`` at t_k (after the
+    manipulators: what the controller saw), the force ``u`` the plant got over
+    [t_k, t_k+1], ``e = x_ref - x`` and the controller's ``mode``, ``pulses``
+    and estimates after its sample at t_k. The last row is the state at the
+    end, with ``u`` NaN.
+
+    While running, it keeps a reference to each slave's list of values per
+    sample (a slave makes a new list at every step); the columns are made from
+    them when the iteration ends. The force is the controller's output ``u``
+    as the plant got it: the one of the same sample with ``"immediate"``
+    timing, of the sample before with ``"delayed"``.
+
+    Parameters
+    ----------
+    plant, controller : Slave
+        The plant (variables x, v, x_meas) and the controller (u, mode,
+        pulses, b_hat, f_c_hat), connected ``controller.u -> plant.u``.
+    label : str
+        Controller label of the trace.
+    iteration : int
+        Iteration number.
+    T : float
+        Sample period, s.
+    x_ref : float
+        Reference position, m.
+    """
+
+    def __init__(self, plant: Slave, controller: Slave, label: str, iteration: int,
+                 T: float, x_ref: float) -> None:
+        self.plant = plant
+        self.controller = controller
+        self.trace = Trace(label, iteration, T, x_ref)
+        self._plant_rows: list[list] = []
+        self._controller_rows: list[list] = []
+        self._t0 = 0.0
+        self._delayed = False
+
+    def setup(self, execution: Execution) -> None:
+        self._state = self.plant.watch(_STATE)
+        (self._u,) = self.controller.watch(("u",))
+        self._ctrl = self.controller.watch(_CONTROLLER)
+        self._delayed = execution.algorithm.timing == "delayed"
+
+    def new_trace(self, iteration: int) -> None:
+        """Start recording a new iteration (same label, period and reference)."""
+        old = self.trace
+        self.trace = Trace(old.controller, iteration, old.T, old.x_ref)
+        self._plant_rows = []
+        self._controller_rows = []
+
+    def initialized(self, t: float) -> None:
+        self._t0 = t
+        self._plant_rows = [self.plant.values]
+        self._controller_rows = []
+        self._controller_start = self.controller.values
+
+    def step_complete(self, k: int, t: float) -> None:
+        self._controller_rows.append(self.controller.values)
+        self._plant_rows.append(self.plant.values)
+
+    def step_failed(self, k: int, t: float) -> None:
+        self._controller_rows.append(self.controller.values)
+        self._fill()
+
+    def finished(self, k: int, t: float) -> None:
+        self._controller_rows.append(self.controller.values)
+        self._fill(last_u=math.nan)
+
+    def _fill(self, last_u: float | None = None) -> None:
+        """The trace's columns from the rows kept (``last_u``: the force of the last row)."""
+        plant_rows, ctrl_rows = self._plant_rows, self._controller_rows
+        n = len(ctrl_rows)
+        rows = plant_rows[:n]
+        T, t0, x_ref = self.trace.T, self._t0, self.trace.x_ref
+        cols = self.trace.columns
+        cols["k"] = list(range(n))
+        cols["t"] = [t0 + k * T for k in range(n)]
+        for name, i in zip(_STATE, self._state, strict=True):
+            cols[name] = [r[i] for r in rows]
+        cols["e"] = [x_ref - x for x in cols["x"]]
+        iu = self._u
+        if self._delayed:
+            u = [self._controller_start[iu]] + [r[iu] for r in ctrl_rows[:n - 1]]
+        else:
+            u = [r[iu] for r in ctrl_rows]
+        if last_u is not None:
+            u[-1] = last_u
+        cols["u"] = u
+        for name, i in zip(_CONTROLLER, self._ctrl, strict=True):
+            cols[name] = [r[i] for r in ctrl_rows]

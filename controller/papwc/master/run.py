@@ -1,0 +1,187 @@
+"""Closed-loop runs: a plant and a controller, a maneuver repeated over iterations.
+
+:func:`run_closed_loop` assembles an :class:`~papwc.master.execution.Execution`
+of two slaves, the controller and the plant (any of FrictionPlant.fmu, the
+in-process physics, a Python controller, PulseController.fmu), connected
+``plant.x_meas -> controller.x_meas`` and ``controller.u -> plant.u``, with the
+maneuver's measurement noise as a manipulator and a trace observer. Timing
+(see :mod:`papwc.master.algorithm`):
+
+- ``"immediate"`` (default): at t_k the controller reads the plant and the
+  plant gets u_k over [t_k, t_k+1];
+- ``"delayed"``: what a master that steps plant and controller side by side
+  does (libcosim, an SSP run): the plant gets u_(k-1) over [t_k, t_k+1]
+  (u_(-1) = 0).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from papwc.controllers import Controller, make_controller
+from papwc.controllers.settings import ControllerSettings
+from papwc.errors import FmuError
+from papwc.master.algorithm import FixedStepAlgorithm
+from papwc.master.execution import Execution
+from papwc.master.manipulators import MeasurementNoise
+from papwc.master.observers import TraceObserver
+from papwc.master.slave import ControllerSlave, Slave
+from papwc.master.trace import Trace
+from papwc.model.maneuver import MANEUVER_DEFAULTS, TIMINGS
+
+__all__ = [
+    "TIMINGS",
+    "Maneuver",
+    "RunResult",
+    "run_closed_loop",
+    "run_controller",
+    "run_iteration",
+]
+
+
+@dataclass
+class Maneuver:
+    """A rest-to-rest maneuver: from rest at x0 = 0 to ``x_ref`` (m) at period ``T`` (s).
+
+    The fields and their defaults are those of :data:`papwc.model.maneuver.MANEUVER_VARIABLES`.
+    """
+
+    x_ref: float = MANEUVER_DEFAULTS["x_ref"]
+    T: float = MANEUVER_DEFAULTS["T"]
+    duration: float = MANEUVER_DEFAULTS["duration"]
+    iterations: int = MANEUVER_DEFAULTS["iterations"]
+    timing: str = MANEUVER_DEFAULTS["timing"]
+    noise_std: float = MANEUVER_DEFAULTS["noise_std"]
+    noise_seed: int = MANEUVER_DEFAULTS["noise_seed"]
+
+    @property
+    def n_steps(self) -> int:
+        """Samples per iteration, ``round(duration / T)``."""
+        return int(round(self.duration / self.T))
+
+
+@dataclass
+class RunResult:
+    """Traces of all iterations of one controller; ``error`` is set if the run stopped."""
+
+    label: str
+    settings: ControllerSettings
+    traces: list[Trace] = field(default_factory=list)
+    error: str = ""
+
+
+class ClosedLoop:
+    """A plant and a controller slave in one execution, for a maneuver.
+
+    Parameters
+    ----------
+    plant : Slave
+        The plant, its parameters already given as start values.
+    controller : Slave
+        The controller: inputs ``x_meas``, ``x_ref``; outputs ``u``, ``mode``,
+        ``pulses``, ``b_hat``, ``f_c_hat``.
+    maneuver : Maneuver
+        Reference, period, duration, timing and measurement noise.
+    label : str
+        Name of the controller in the traces.
+    """
+
+    def __init__(self, plant: Slave, controller: Slave, maneuver: Maneuver,
+                 label: str = "") -> None:
+        self.maneuver = maneuver
+        self.plant = plant
+        self.controller = controller
+        execution = Execution(FixedStepAlgorithm(maneuver.T, maneuver.timing))
+        execution.add_slave(controller)
+        execution.add_slave(plant)
+        execution.connect(plant, "x_meas", controller, "x_meas")
+        execution.connect(controller, "u", plant, "u")
+        controller.set_start_values({"x_ref": maneuver.x_ref})
+        self.noise = None
+        if maneuver.noise_std > 0.0:
+            self.noise = MeasurementNoise(plant, "x_meas", maneuver.noise_std,
+                                          maneuver.noise_seed)
+            execution.add_manipulator(self.noise)
+        self.observer = TraceObserver(plant, controller, label, 1, maneuver.T, maneuver.x_ref)
+        execution.add_observer(self.observer)
+        self.execution = execution
+
+    def iteration(self, number: int, first: bool | None = None) -> Trace:
+        """Run one iteration: initialize (the first) or restart, then every sample.
+
+        Parameters
+        ----------
+        number : int
+            Iteration number (from 1): names the trace and seeds the noise.
+        first : bool, optional
+            Initialize the slaves (default: ``number == 1``); otherwise restart them.
+
+        Returns
+        -------
+        Trace
+            A failure of a slave ends it early with ``trace.error`` set and every
+            sample before it kept (no sample if the (re)initialization failed).
+        """
+        self.observer.new_trace(number)
+        if self.noise is not None:
+            self.noise.iteration = number
+        trace = self.observer.trace
+        try:
+            if number == 1 if first is None else first:
+                self.execution.initialize()
+            else:
+                self.execution.restart()
+        except FmuError as exc:
+            trace.error = str(exc)
+            trace.columns = {name: [] for name in trace.columns}
+            return trace
+        try:
+            self.execution.step(self.maneuver.n_steps)
+        except FmuError as exc:
+            trace.error = str(exc)
+            return trace
+        self.execution.finish()
+        return trace
+
+
+def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
+                    settings: ControllerSettings | None = None, label: str = "") -> RunResult:
+    """Run all iterations of the maneuver; what the controller learns carries over.
+
+    ``plant`` must already have its parameters as start values. The first
+    iteration initializes both slaves, later ones restart them. A failure
+    stops the run and is kept in ``result.error`` (``"iteration N: ..."``); the
+    traces recorded until then are kept.
+    """
+    settings = settings if settings is not None else ControllerSettings()
+    result = RunResult(label or settings.kind, settings)
+    loop = ClosedLoop(plant, controller, maneuver, result.label)
+    for number in range(1, maneuver.iterations + 1):
+        trace = loop.iteration(number)
+        if trace.error and not len(trace):
+            result.error = f"iteration {number}: {trace.error}"
+            return result
+        result.traces.append(trace)
+        if trace.error:
+            result.error = f"iteration {number}: {trace.error}"
+            return result
+    return result
+
+
+def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuver,
+                   label: str = "") -> RunResult:
+    """Run a Python controller of ``settings`` against ``plant`` (see :func:`run_closed_loop`)."""
+    controller = ControllerSlave(make_controller(settings, maneuver.T))
+    return run_closed_loop(plant, controller, maneuver, settings, label)
+
+
+def run_iteration(plant: Slave, controller: Controller | Slave, maneuver: Maneuver,
+                  label: str = "", iteration: int = 0) -> Trace:
+    """One iteration from the plant's initial state (both slaves are initialized here).
+
+    ``controller`` is a Python controller or a controller slave. ``iteration``
+    names the trace and seeds the noise. Returns the trace (``trace.error`` set
+    if a step failed).
+    """
+    slave = controller if hasattr(controller, "watch") else ControllerSlave(controller)
+    return ClosedLoop(plant, slave, maneuver, label).iteration(iteration, first=True)

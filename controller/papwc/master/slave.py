@@ -1,0 +1,352 @@
+"""What the master steps: the :class:`Slave` interface and the in-process slaves.
+
+A slave is a model with named variables that the master steps in time, as in
+libcosim: an FMU (:class:`papwc.master.fmu.FmuSlave`), the plant's physics
+computed in this process (:class:`PhysicsSlave`) or a Python controller
+(:class:`ControllerSlave`). The master talks to every slave through the same
+small interface:
+
+1. ``set_start_values(values)``: parameters and input start values, applied at
+   every (re)initialization;
+2. ``watch(names)``: the variables (inputs or outputs) the master reads; their
+   values are in the list ``slave.values`` after ``initialize``, ``restart``
+   and every ``do_step``, at the indexes ``watch`` returns;
+3. ``input_setter(names)``: a function ``set(*values)`` that sets those inputs;
+4. ``initialize(t0)``, ``restart(t0)`` (back to the state right after
+   initialization; a learning controller keeps what it has learned),
+   ``do_step(t, h)`` and ``close()``.
+
+Reading and writing go through prepared functions and a refreshed list so that
+an FMU is called with prepared arguments, once per step and direction.
+Failures raise :class:`papwc.errors.FmuError` naming the time and the call.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from types import SimpleNamespace
+from typing import Any, Protocol
+
+from papwc.controllers import Controller
+from papwc.errors import FmuError
+from papwc.model import stickslip
+from papwc.model.plant import PLANT_DEFAULTS, PLANT_VARIABLES, plant_problems
+
+__all__ = ["ControllerSlave", "PhysicsSlave", "SignalSlave", "Slave"]
+
+
+class Slave(Protocol):
+    """The interface every slave offers the master (see the module docstring)."""
+
+    #: Instance name (e.g. ``"plant"``, ``"controller"``).
+    name: str
+    #: Values of the watched variables, in the order of the indexes ``watch`` returned.
+    values: list[Any]
+
+    def variables(self) -> Mapping[str, str]:
+        """Causality (``"parameter"``, ``"input"``, ``"output"``, ...) of every variable."""
+        ...
+
+    def set_start_values(self, values: Mapping[str, Any]) -> None:
+        """Parameters and input start values applied at every (re)initialization."""
+        ...
+
+    def watch(self, names: Sequence[str]) -> list[int]:
+        """Have ``names`` read into :attr:`values` after each step; return their indexes."""
+        ...
+
+    def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        """A function ``set(*values)`` that sets the inputs ``names``, in that order."""
+        ...
+
+    def initialize(self, start_time: float) -> None:
+        """Initialize with the start values; :attr:`values` then holds the initial values."""
+        ...
+
+    def restart(self, start_time: float) -> None:
+        """Back to the state right after initialization (learned estimates are kept)."""
+        ...
+
+    def do_step(self, t: float, h: float) -> None:
+        """Advance from ``t`` over ``h`` (s) and refresh :attr:`values`."""
+        ...
+
+    def close(self) -> None:
+        """Release what the slave holds."""
+        ...
+
+
+def _list_reader(paths: Sequence[str]) -> Callable[[Any], list[Any]]:
+    """``f(obj)`` returning ``[obj.<path>, ...]`` as a new list.
+
+    Compiled from the (identifier) paths, as :mod:`dataclasses` compiles its
+    methods: one list display is the cheapest way to read several attributes.
+    """
+    for path in paths:
+        if not all(part.isidentifier() for part in path.split(".")):
+            raise ValueError(f"not an attribute path: {path!r}")
+    return eval("lambda o: [" + ", ".join(f"o.{p}" for p in paths) + "]")  # noqa: S307
+
+
+class _WatchedAttributes:
+    """Watching and setting variables that are attributes of a Python object.
+
+    A subclass maps each variable to an attribute path (:meth:`_path`); the
+    watched values are read by one compiled list display.
+    """
+
+    name: str
+    values: list[Any]
+
+    def _init_watch(self) -> None:
+        self.values = []
+        self._watched: list[str] = []
+        self._read: Callable[[Any], list[Any]] = lambda obj: []
+
+    def watch(self, names: Sequence[str]) -> list[int]:
+        known = self.variables()
+        indexes = []
+        for name in names:
+            if name not in known:
+                raise FmuError(f"{self.name}: has no variable {name!r}; variables: "
+                               + ", ".join(known))
+            if name not in self._watched:
+                self._watched.append(name)
+            indexes.append(self._watched.index(name))
+        self._read = _list_reader([self._path(n) for n in self._watched])
+        return indexes
+
+    def _refresh(self) -> None:
+        self.values = self._read(self)
+
+    def _attribute_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        """A setter of attribute inputs that also shows the values if they are watched."""
+        shown = [(j, self._watched.index(n)) for j, n in enumerate(names) if n in self._watched]
+        if len(names) == 1:
+            (name,) = names
+            index = shown[0][1] if shown else None
+
+            def set_one(value: Any) -> None:
+                setattr(self, name, value)
+                if index is not None:
+                    self.values[index] = value
+
+            return set_one
+
+        def set_all(*values: Any) -> None:
+            for name, value in zip(names, values, strict=True):
+                setattr(self, name, value)
+            for j, i in shown:
+                self.values[i] = values[j]
+
+        return set_all
+
+    def _path(self, name: str) -> str:
+        raise NotImplementedError
+
+    def variables(self) -> Mapping[str, str]:
+        raise NotImplementedError
+
+
+class PhysicsSlave(_WatchedAttributes):
+    """The friction plant computed in this process by :mod:`papwc.model.stickslip`.
+
+    Same variables, units and parameter checks as FrictionPlant.fmu (both read
+    :data:`papwc.model.plant.PLANT_VARIABLES`); fast, for analysis and tests.
+    """
+
+    def __init__(self, name: str = "plant") -> None:
+        self.name = name
+        self.params: dict[str, Any] = dict(PLANT_DEFAULTS)
+        self.x = self.v = self.x_meas = 0.0
+        self.u = 0.0
+        self.stuck = True
+        self.p = SimpleNamespace(**self.params)
+        self._init_watch()
+
+    def variables(self) -> Mapping[str, str]:
+        return {v.name: v.causality for v in PLANT_VARIABLES}
+
+    def _path(self, name: str) -> str:
+        return name if name in ("x", "v", "u", "x_meas", "stuck") else f"p.{name}"
+
+    def _update_outputs(self) -> None:
+        self.x_meas = stickslip.quantize(self.x, self.params["x_resolution"])
+        self.stuck = self.v == 0.0
+
+    def set_start_values(self, values: Mapping[str, Any]) -> None:
+        unknown = [n for n in values if n not in self.params and n != "u"]
+        if unknown:
+            raise FmuError(f"{self.name}: the plant has no parameter "
+                           + ", ".join(sorted(unknown)))
+        for key, value in values.items():
+            if key == "u":
+                self.u = float(value)
+            else:
+                self.params[key] = float(value)
+
+    def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        if list(names) != ["u"]:
+            raise FmuError(f"{self.name}: the plant's only input is u, not {list(names)}")
+        return self._attribute_setter(names)
+
+    def initialize(self, start_time: float = 0.0) -> None:
+        problems = plant_problems(self.params)
+        if problems:
+            raise FmuError("exitInitializationMode refused: "
+                           + "; ".join(f"parameter {m}" for _, m in problems))
+        self.p = SimpleNamespace(**self.params)
+        self.x, self.v = self.params["x0"], self.params["v0"]
+        self._update_outputs()
+        self._refresh()
+
+    restart = initialize
+
+    def do_step(self, t: float, h: float) -> None:
+        u = self.u
+        if not (math.isfinite(u) and h > 0.0):
+            raise FmuError(f"doStep at t = {t!r} s discarded: u = {u!r} N, step size = {h!r} s")
+        p = self.params
+        self.x, self.v = stickslip.step(self.x, self.v, u, h, p["m"], p["f_c"], p["f_s"], p["c"])
+        self._update_outputs()
+        self._refresh()
+
+    def close(self) -> None:
+        pass
+
+
+#: Variables of a Python controller slave: inputs, and the outputs every controller has.
+CONTROLLER_SLAVE_VARIABLES = {
+    "x_meas": "input", "x_ref": "input", "u": "output", "mode": "output",
+    "pulses": "output", "b_hat": "output", "f_c_hat": "output",
+}  # fmt: skip
+
+
+class ControllerSlave(_WatchedAttributes):
+    """A Python controller (:class:`papwc.controllers.Controller`) as a slave.
+
+    Like PulseController.fmu: ``do_step(t, h)`` samples the inputs ``x_meas``
+    and ``x_ref`` (m) present at ``t`` and sets ``u`` (N), the force to hold
+    over the next sample; ``mode``, ``pulses`` and the controller's estimates
+    (``b_hat``, ``f_c_hat``, ...) are outputs. ``restart`` starts a new
+    maneuver from rest with what the controller learned.
+    """
+
+    def __init__(self, controller: Controller, name: str = "controller") -> None:
+        self.name = name
+        self.controller = controller
+        self.x_meas = 0.0
+        self.x_ref = 0.0
+        self.u = 0.0
+        self._start: dict[str, float] = {}
+        self.estimates = SimpleNamespace(**controller.estimates())
+        self._revision = controller.revision
+        self._init_watch()
+
+    def variables(self) -> Mapping[str, str]:
+        out = dict(CONTROLLER_SLAVE_VARIABLES)
+        out.update({name: "output" for name in vars(self.estimates)})
+        return out
+
+    def _path(self, name: str) -> str:
+        if name in ("x_meas", "x_ref", "u"):
+            return name
+        if name in ("mode", "pulses"):
+            return f"controller.{name}"
+        return f"estimates.{name}"
+
+    def set_start_values(self, values: Mapping[str, Any]) -> None:
+        for key in values:
+            if CONTROLLER_SLAVE_VARIABLES.get(key) != "input":
+                raise FmuError(f"{self.name}: {key!r} is not an input of the controller; "
+                               "its settings are given when it is made")
+        self._start.update(values)
+
+    def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        for name in names:
+            if CONTROLLER_SLAVE_VARIABLES.get(name) != "input":
+                raise FmuError(f"{self.name}: {name!r} is not an input of the controller")
+        return self._attribute_setter(names)
+
+    def initialize(self, start_time: float = 0.0) -> None:
+        for key, value in self._start.items():
+            setattr(self, key, value)
+        self.u = 0.0
+        self._refresh_estimates()
+        self._refresh()
+
+    def restart(self, start_time: float = 0.0) -> None:
+        self.controller.reset()
+        self.initialize(start_time)
+
+    def do_step(self, t: float, h: float) -> None:
+        self.u = self.controller.update(t, self.x_meas, self.x_ref)
+        if self.controller.revision != self._revision:
+            self._refresh_estimates()
+        self._refresh()
+
+    def _refresh_estimates(self) -> None:
+        self.estimates = SimpleNamespace(**self.controller.estimates())
+        self._revision = self.controller.revision
+
+    def close(self) -> None:
+        pass
+
+
+class SignalSlave(_WatchedAttributes):
+    """Outputs that play given sequences, held over each step (zero-order hold).
+
+    Like a controller, the slave sets its outputs for step k when it steps at
+    t_k: with ``"immediate"`` timing, output ``name`` is ``signals[name][k]``
+    over step k (from t_k to t_k+1), and its last value after the sequence
+    ends. A force sequence played into a plant drives it open-loop.
+
+    Parameters
+    ----------
+    signals : mapping of str to sequence of float
+        Output name -> value per step.
+    name : str
+        Instance name.
+    """
+
+    def __init__(self, signals: Mapping[str, Sequence[float]], name: str = "signal") -> None:
+        self.name = name
+        self.signals = {key: list(values) for key, values in signals.items()}
+        for key, values in self.signals.items():
+            if not key.isidentifier() or not values:
+                raise FmuError(f"{name}: signal {key!r} needs an identifier name and values")
+            setattr(self, key, values[0])
+        self._k = 0
+        self._init_watch()
+
+    def variables(self) -> Mapping[str, str]:
+        return {key: "output" for key in self.signals}
+
+    def _path(self, name: str) -> str:
+        return name
+
+    def set_start_values(self, values: Mapping[str, Any]) -> None:
+        if values:
+            raise FmuError(f"{self.name}: a signal has no parameters or inputs")
+
+    def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        raise FmuError(f"{self.name}: a signal has no inputs")
+
+    def _show(self, k: int) -> None:
+        for key, values in self.signals.items():
+            setattr(self, key, values[min(k, len(values) - 1)])
+        self._refresh()
+
+    def initialize(self, start_time: float = 0.0) -> None:
+        self._k = 0
+        self._show(0)
+
+    restart = initialize
+
+    def do_step(self, t: float, h: float) -> None:
+        self._show(self._k)
+        self._k += 1
+
+    def close(self) -> None:
+        pass

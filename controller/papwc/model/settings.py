@@ -1,0 +1,149 @@
+"""The pulse controllers' settings and signals: names, units, defaults, ranges.
+
+Standard library only (bundled into PulseController.fmu). Every setting here is
+at once a field of a scenario's ``[[controller]]`` table, a battery path
+(``controller.NAME``), an attribute of
+:class:`papwc.controllers.settings.ControllerSettings` and a parameter of
+PulseController.fmu. A setting that only one controller kind reads names it in
+``kinds``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from .variables import FMU_DEFAULT_SENTINEL, Constraint, Variable, problems
+
+__all__ = [
+    "CONTROLLER_CONSTRAINTS",
+    "CONTROLLER_INPUTS",
+    "CONTROLLER_OUTPUTS",
+    "CONTROLLER_SETTINGS",
+    "FMU_DEFAULT_SENTINEL",
+    "SAMPLE_PERIOD",
+    "settings_problems",
+]
+
+#: Settings of a ``[[controller]]`` table, in the order of the FMU's value references.
+CONTROLLER_SETTINGS: tuple[Variable, ...] = (
+    Variable("kind", "Controller kind (pwc: Section 2, papwc: Section 3, exact: Eq. (3) "
+             "learned)", "", "papwc", type="String"),
+    Variable("f_p_max", "Largest pulse amplitude (PWC always pulses at f_p_max)", "N", 300.0,
+             min=0.0, min_open=True, nominal=100.0),
+    Variable("t_p_max", "Largest pulse width; inf for no bound", "s", float("inf"), min=0.0,
+             min_open=True, inf_ok=True, note="(inf for no bound)"),
+    Variable("K_c", "Gain of Eq. (6)", "1", 1.0, min=0.0, max=2.0, min_open=True,
+             max_open=True, note="(Eq. (6))"),
+    Variable("tolerance", "Error band inside which the mass at rest counts as settled", "m",
+             2e-5, min=0.0, nominal=1e-5),
+    Variable("m_est", "Initial estimate of the mass", "kg", 150.0, min=0.0, min_open=True,
+             nominal=100.0),
+    Variable("f_c_est", "Initial estimate of the Coulomb friction, < f_p_max", "N", 80.0,
+             min=0.0, min_open=True, nominal=100.0),
+    Variable("f_p_min", "Initial floor of the pulse amplitude, <= f_p_max; default f_c_est",
+             "N", None, min=0.0, optional=True, nominal=100.0),
+    Variable("floor_raise", "Relative step by which the amplitude floor rises above an "
+             "amplitude that did not move the mass", "1", 0.05, min=0.0, max=1.0,
+             min_open=True),
+    Variable("F_inv0", "Initial inverse gain F^-1(0) of the PWC estimator, Eq. (8)", "s4",
+             1e-5, min=0.0, min_open=True, kinds=("pwc",)),
+    Variable("lambda_1", "Forgetting parameter lambda_1 of Eq. (8)", "1", 1.0, min=0.0,
+             max=1.0, min_open=True, note="(Eq. (8))", kinds=("pwc",)),
+    Variable("lambda_2", "Forgetting parameter lambda_2 of Eq. (8)", "1", 1.0, min=0.0,
+             max=2.0, max_open=True, note="(Eq. (8))", kinds=("pwc",)),
+    Variable("delta_inv", "P(0) = delta_inv*I of the PAPWC estimator, Eq. (13)-(17)", "1",
+             1e-5, min=0.0, min_open=True, kinds=("papwc",)),
+    Variable("lambda", "Forgetting factor lambda of Eq. (14)-(15)", "1", 1.0, min=0.0,
+             max=1.0, min_open=True, attr="lam", kinds=("papwc",)),
+    Variable("e_band", "Error band inside which the mass at rest is handed over from the "
+             "coarse feedback to pulse mode, > tolerance", "m", 0.02, min=0.0, min_open=True),
+    Variable("k_p", "Proportional gain of the coarse feedback; default m_est*(10 rad/s)**2",
+             "N/m", None, min=0.0, min_open=True, optional=True),
+    Variable("k_d", "Derivative gain of the coarse feedback; default 2*0.7*(10 rad/s)*m_est",
+             "N.s/m", None, min=0.0, optional=True),
+    Variable("rest_samples", "Samples with unchanged measured position that count as at "
+             "rest", "", 1, type="Integer", min=1),
+    Variable("rest_band", "Largest change of the measured position that still counts as "
+             "unchanged (rest detection)", "m", 0.0, min=0.0, nominal=1e-6),
+    Variable("c_est", "Initial estimate of the viscous damping", "N.s/m", 0.0, min=0.0,
+             kinds=("exact",), nominal=100.0),
+    Variable("history", "Number of pulses kept for the fit", "", 16, type="Integer", min=1,
+             kinds=("exact",)),
+    Variable("max_pulses", "Pulses per maneuver after which the controller stops", "", 20,
+             type="Integer", min=1, kinds=("exact",)),
+    Variable("x_resolution", "Resolution of the position measurement; weights the fit", "m",
+             0.0, min=0.0, kinds=("exact",), nominal=1e-6),
+    Variable("f_s_tol", "Relative width of the f_s bracket below which no more probing is "
+             "done", "1", 0.02, min=0.0, max=1.0, min_open=True, kinds=("exact",)),
+)
+
+
+def _below_f_p_max(name: str, strict: bool):
+    def check(values: Mapping[str, Any]) -> tuple[str, str] | None:
+        value, f_p_max = values[name], values["f_p_max"]
+        if value is None or (value < f_p_max if strict else value <= f_p_max):
+            return None
+        lo = "0 <" if strict else "0 <="
+        op = "<" if strict else "<="
+        return name, (f"{name} = {value!r} N: must satisfy {lo} {name} {op} f_p_max = "
+                      f"{f_p_max!r} N")
+
+    return Constraint((name, "f_p_max"), check)
+
+
+def _e_band_above_tolerance(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    if values["e_band"] > values["tolerance"]:
+        return None
+    return "e_band", (f"e_band = {values['e_band']!r} m: must be > tolerance = "
+                      f"{values['tolerance']!r} m")
+
+
+#: Rules between settings.
+CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
+    _below_f_p_max("f_c_est", strict=True),
+    _below_f_p_max("f_p_min", strict=False),
+    Constraint(("e_band", "tolerance"), _e_band_above_tolerance),
+)
+
+#: The sample period as a parameter of PulseController.fmu.
+SAMPLE_PERIOD = Variable("T", "Sample period: every communication step must be T", "s", 0.01,
+                         min=0.0, min_open=True)
+
+#: Inputs of PulseController.fmu, read at the start of each step.
+CONTROLLER_INPUTS: tuple[Variable, ...] = (
+    Variable("x_meas", "Measured position, read at the start of each step", "m", 0.0,
+             causality="input"),
+    Variable("x_ref", "Reference position, read at the start of each step", "m", 0.0,
+             causality="input"),
+    Variable("maneuver", "Maneuver number: when it changes, the controller starts a new "
+             "maneuver from rest, keeping what it has learned (u is 0 until the next step)",
+             "", 0, causality="input", type="Integer"),
+)
+
+#: Outputs of PulseController.fmu after each step (no direct feedthrough at a
+#: communication point: they change only in doStep).
+CONTROLLER_OUTPUTS: tuple[Variable, ...] = (
+    Variable("u", "Force to hold over the next sample, computed at the last step (0 before "
+             "the first step)", "N", 0.0, causality="output", initial="exact",
+             variability="discrete"),
+    Variable("b_hat", "Estimated pulse-model coefficient b at f_p_max (PWC: Eq. (7)-(9); "
+             "PAPWC: A1*f_p_max**2 - A2*f_p_max, Eq. (12))", "m/s2", 0.0,
+             causality="output", initial="calculated", variability="discrete"),
+    Variable("f_c_hat", "Estimated Coulomb friction (PAPWC: A2/A1; PWC: implied by b_hat)",
+             "N", 0.0, causality="output", initial="calculated", variability="discrete"),
+    Variable("pulses", "Number of pulses started since the start of the simulation", "", 0,
+             causality="output", type="Integer", initial="exact"),
+    Variable("mode", "Controller mode after the last step: 0 coarse, 1 pulse (also before "
+             "the first step), 2 wait, 3 settled", "", 1, causality="output",
+             type="Integer", initial="exact"),
+)
+
+
+def settings_problems(values: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """Every invalid setting in ``values`` (scenario-file names) as ``(name, message)``.
+
+    Only the values given are checked (the kind is checked against the
+    registered controllers by :mod:`papwc.controllers`).
+    """
+    return problems(CONTROLLER_SETTINGS, values, CONTROLLER_CONSTRAINTS)

@@ -1,0 +1,266 @@
+"""Metadata of parameters, settings, inputs and outputs: name, unit, default, range.
+
+Standard library only (bundled into the FMUs). A :class:`Variable` says
+everything the rest of the project needs to know about one quantity: the FMU
+variable declarations, the model description's units and ranges, the SSP
+writer, scenario validation and the master's in-process plant all read it, so
+adding a parameter is one entry in a table of :mod:`papwc.model.plant`,
+:mod:`papwc.model.maneuver` or :mod:`papwc.model.settings`.
+
+Validation messages have one form, ``"<name> = <value> <unit>: must ..."``,
+e.g. ``"K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+__all__ = [
+    "FMU_DEFAULT_SENTINEL",
+    "Constraint",
+    "Variable",
+    "by_name",
+    "describe_value",
+    "problems",
+]
+
+#: In an FMU, the value of an optional setting that selects its computed default.
+FMU_DEFAULT_SENTINEL = -1.0
+
+#: FMI 2.0 types a variable can have.
+TYPES = ("Real", "Integer", "Boolean", "String")
+#: Causalities (FMI 2.0 names).
+CAUSALITIES = ("parameter", "input", "output")
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One parameter, setting, input or output.
+
+    Attributes
+    ----------
+    name : str
+        Name in scenario files, FMU model descriptions and results.
+    description : str
+        One line: what it is (the range is added from ``min``/``max``).
+    unit : str
+        SI unit as written in the model description (``"1"``: dimensionless;
+        ``""`` for Integer, Boolean and String variables).
+    default : float, int, bool, str or None
+        Default (start) value; ``None`` for an optional setting whose default
+        is computed from others (``optional``).
+    causality : str
+        ``"parameter"``, ``"input"`` or ``"output"``.
+    type : str
+        ``"Real"``, ``"Integer"``, ``"Boolean"`` or ``"String"``.
+    min, max : float or None
+        Allowed range of a parameter (inclusive unless ``min_open``/``max_open``).
+    min_open, max_open : bool
+        Whether the bound itself is excluded.
+    nominal : float or None
+        Nominal magnitude (model description), where it helps a tool scale.
+    inf_ok : bool
+        ``+inf`` is allowed (e.g. no bound on the pulse width).
+    optional : bool
+        ``None`` is allowed and selects a computed default; in an FMU the value
+        ``-1`` stands for it.
+    choices : tuple of str
+        Allowed values of a String.
+    note : str
+        Appended to a range message, e.g. ``"(Eq. (6))"``.
+    kinds : tuple of str
+        Controller kinds the setting applies to (empty: all).
+    attr : str
+        Python attribute name where it differs from ``name`` (``lambda`` -> ``lam``).
+    initial : str
+        FMI ``initial`` of an output (``"exact"`` or ``"calculated"``: its
+        value after initialization follows from the parameters).
+    feedthrough : bool
+        An output that depends on the inputs at the same communication point
+        (FMI ``dependencies``); False: ``dependencies=""``.
+    variability : str
+        FMI variability where the default does not fit (parameters: ``fixed``;
+        Real inputs and outputs: ``continuous``; others: ``discrete``), e.g.
+        ``"discrete"`` for an output that changes only at communication points.
+    """
+
+    name: str
+    description: str
+    unit: str = "1"
+    default: Any = 0.0
+    causality: str = "parameter"
+    type: str = "Real"
+    min: float | None = None
+    max: float | None = None
+    min_open: bool = False
+    max_open: bool = False
+    nominal: float | None = None
+    inf_ok: bool = False
+    optional: bool = False
+    choices: tuple[str, ...] = ()
+    note: str = ""
+    kinds: tuple[str, ...] = ()
+    attr: str = ""
+    initial: str = ""
+    feedthrough: bool = False
+    variability: str = ""
+
+    def __post_init__(self) -> None:
+        if self.type not in TYPES:
+            raise ValueError(f"variable {self.name}: type {self.type!r} not in {TYPES}")
+        if self.causality not in CAUSALITIES:
+            raise ValueError(f"variable {self.name}: causality {self.causality!r}")
+
+    @property
+    def fmi_variability(self) -> str:
+        """FMI 2.0 variability of the variable."""
+        if self.variability:
+            return self.variability
+        if self.causality == "parameter":
+            return "fixed"
+        return "continuous" if self.type == "Real" else "discrete"
+
+    @property
+    def fmi_start(self) -> Any:
+        """Start value in an FMU: the default, or :data:`FMU_DEFAULT_SENTINEL` for ``None``."""
+        return FMU_DEFAULT_SENTINEL if self.default is None else self.default
+
+    @property
+    def attribute(self) -> str:
+        """Python attribute name (``name`` unless it is a keyword)."""
+        return self.attr or self.name
+
+    @property
+    def unit_suffix(self) -> str:
+        """``" <unit>"`` for a value in messages, empty for dimensionless or unit-less."""
+        return f" {self.unit}" if self.unit not in ("", "1") else ""
+
+    def range_text(self) -> str:
+        """The allowed range in words, e.g. ``"0 < K_c < 2"`` or ``">= 0 m"``."""
+        lo, hi = self.min, self.max
+        if self.type == "Integer":
+            text = "a whole number"
+            if lo is not None:
+                text += f" {'>' if self.min_open else '>='} {_num(lo)}"
+            if hi is not None:
+                text += f" {'<' if self.max_open else '<='} {_num(hi)}"
+            return text
+        if lo is not None and hi is not None:
+            return (
+                f"{_num(lo)} {'<' if self.min_open else '<='} {self.name} "
+                f"{'<' if self.max_open else '<='} {_num(hi)}{self.unit_suffix}"
+            )
+        if lo is not None:
+            return f"{'>' if self.min_open else '>='} {_num(lo)}{self.unit_suffix}"
+        if hi is not None:
+            return f"{'<' if self.max_open else '<='} {_num(hi)}{self.unit_suffix}"
+        return "any finite number"
+
+    def check(self, value: Any) -> str | None:
+        """What is wrong with ``value`` (the text after ``"must"``), or None if it is allowed."""
+        if self.optional and value is None:
+            return None
+        if self.type == "String":
+            if not isinstance(value, str):
+                return "be a string"
+            if self.choices and value not in self.choices:
+                return "be one of " + ", ".join(repr(c) for c in self.choices)
+            return None
+        if self.type == "Boolean":
+            return None if isinstance(value, bool) else "be true or false"
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            return "be a number"
+        if self.type == "Integer" and not (math.isfinite(value) and float(value).is_integer()):
+            return f"be {self.range_text()}"
+        if math.isnan(value) or (math.isinf(value) and not (self.inf_ok and value > 0)):
+            return "be a finite number" + ("" if not self.inf_ok else " or inf")
+        lo, hi = self.min, self.max
+        if lo is not None and (value <= lo if self.min_open else value < lo):
+            return self._range_message()
+        if hi is not None and (value >= hi if self.max_open else value > hi):
+            return self._range_message()
+        return None
+
+    def _range_message(self) -> str:
+        text = self.range_text()
+        verb = "satisfy" if self.min is not None and self.max is not None else "be"
+        if self.type == "Integer":
+            verb = "be"
+        return f"{verb} {text}" + (f" {self.note}" if self.note else "")
+
+    def message(self, value: Any, must: str) -> str:
+        """``"<name> = <value> <unit>: must <must>"``."""
+        return f"{self.name} = {describe_value(value)}{self._value_unit(value)}: must {must}"
+
+    def _value_unit(self, value: Any) -> str:
+        return self.unit_suffix if isinstance(value, (int, float)) and not isinstance(
+            value, bool) else ""
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """A rule between several values; ``check(values)`` returns ``(name, message)`` or None.
+
+    ``names`` are the variables it reads; it is checked only when each of them
+    is valid on its own.
+    """
+
+    names: tuple[str, ...]
+    check: Callable[[Mapping[str, Any]], tuple[str, str] | None]
+
+
+def describe_value(value: Any) -> str:
+    """A value as written in messages (``repr``; whole floats keep their ``.0``)."""
+    return repr(value)
+
+
+def _num(x: float) -> str:
+    """A bound as written in messages: ``0``, ``2``, ``1e-06``, ``0.5``."""
+    if math.isinf(x):
+        return "inf" if x > 0 else "-inf"
+    if float(x).is_integer() and abs(x) < 1e15:
+        return str(int(x))
+    return repr(float(x))
+
+
+def by_name(variables: Iterable[Variable]) -> dict[str, Variable]:
+    """A table of variables indexed by name."""
+    return {v.name: v for v in variables}
+
+
+def problems(
+    variables: Iterable[Variable],
+    values: Mapping[str, Any],
+    constraints: Iterable[Constraint] = (),
+) -> list[tuple[str, str]]:
+    """Every invalid value as ``(name, message)``; empty when all are allowed.
+
+    Parameters
+    ----------
+    variables : iterable of Variable
+        The table the values belong to; only names present in ``values`` are
+        checked.
+    values : mapping
+        Name -> value.
+    constraints : iterable of Constraint
+        Rules between values, checked for values that are valid on their own.
+    """
+    out: list[tuple[str, str]] = []
+    bad: set[str] = set()
+    for var in variables:
+        if var.name not in values:
+            continue
+        value = values[var.name]
+        must = var.check(value)
+        if must is not None:
+            out.append((var.name, var.message(value, must)))
+            bad.add(var.name)
+    for rule in constraints:
+        if all(n in values and n not in bad for n in rule.names):
+            found = rule.check(values)
+            if found is not None:
+                out.append(found)
+    return out

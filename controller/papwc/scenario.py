@@ -1,0 +1,178 @@
+"""Scenario files: TOML read with tomllib, validated with errors naming file, table and field.
+
+The schema (public; extend it, don't rename it)::
+
+    name = "paper"
+    [plant]          # FrictionPlant parameters (papwc.model.plant), e.g.
+                     # m (kg), f_c (N), f_s (N), c (N.s/m), x_resolution (m)
+    [maneuver]       # x_ref (m), T (s), duration (s per iteration), iterations,
+                     # timing ("immediate" | "delayed"), noise_std (m), noise_seed
+    [[controller]]   # one table per controller; settings of papwc.model.settings
+    kind = "papwc"   # "pwc", "papwc", "exact"
+    label = "..."    # optional name in results (default: kind and t_p_max)
+
+Every field may be left out and takes the default of its table in the model
+layer (:mod:`papwc.model.plant`, :mod:`papwc.model.maneuver`,
+:mod:`papwc.model.settings`); ``kind`` is required.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from papwc.controllers import CONTROLLER_KINDS
+from papwc.controllers.settings import ControllerSettings, settings_for_kind
+from papwc.errors import ScenarioError
+from papwc.master.run import Maneuver
+from papwc.model.maneuver import MANEUVER_DEFAULTS, maneuver_problems
+from papwc.model.plant import PLANT_DEFAULTS, SCENARIO_PLANT_FIELDS, plant_problems
+
+__all__ = [
+    "MANEUVER_FIELDS",
+    "PLANT_FIELDS",
+    "Scenario",
+    "controller_label",
+    "load_scenario",
+    "parse_scenario",
+    "read_toml",
+]
+
+#: ``[plant]`` fields and their defaults.
+PLANT_FIELDS: dict[str, Any] = {name: PLANT_DEFAULTS[name] for name in SCENARIO_PLANT_FIELDS}
+#: ``[maneuver]`` fields.
+MANEUVER_FIELDS: tuple[str, ...] = tuple(MANEUVER_DEFAULTS)
+#: Top-level fields of a scenario file.
+TOP_LEVEL = ("name", "description", "plant", "maneuver", "controller")
+
+
+@dataclass
+class Scenario:
+    """A validated scenario."""
+
+    name: str
+    plant: dict[str, float]
+    maneuver: Maneuver
+    controllers: list[ControllerSettings]
+    labels: list[str]
+    source: str = ""
+    extra: dict = field(default_factory=dict)
+
+
+def controller_label(settings: ControllerSettings, label: str | None = None) -> str:
+    """Name of a controller in results: its label, or kind and t_p_max."""
+    if label:
+        return label
+    t = settings.t_p_max
+    return f"{settings.kind}_tpmax_{'inf' if math.isinf(t) else f'{t:g}'}"
+
+
+def load_scenario(path: str | os.PathLike) -> Scenario:
+    """Read and validate a scenario file.
+
+    Raises
+    ------
+    ScenarioError
+        With the file, the table and the field that are wrong, and what is allowed.
+    """
+    return parse_scenario(read_toml(path, "scenario"), str(path))
+
+
+def read_toml(path: str | os.PathLike, what: str = "scenario") -> dict:
+    """Read a TOML file; a missing file or a syntax error is a ScenarioError naming it."""
+    try:
+        with open(path, "rb") as f:
+            return tomllib.load(f)
+    except FileNotFoundError:
+        raise ScenarioError(f"{path}: no such {what} file") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
+
+
+def _table(source: str, data: dict, key: str) -> dict:
+    value = data.get(key, {})
+    if not isinstance(value, dict):
+        raise ScenarioError(f"{source}: [{key}] must be a table")
+    return value
+
+
+def _check_fields(source: str, where: str, table: dict, allowed, what: str = "") -> None:
+    for key in table:
+        if key not in allowed:
+            raise ScenarioError(f"{source}: {where} unknown field {key!r}{what}; allowed: "
+                                + ", ".join(allowed))
+
+
+def _first(source: str, where: str, problems: list[tuple[str, str]]) -> None:
+    if problems:
+        name, message = problems[0]
+        raise ScenarioError(f"{source}: {where} field {name!r}: {message}")
+
+
+def parse_scenario(data: dict, source: str, allow: tuple[str, ...] = ()) -> Scenario:
+    """Validate a scenario given as a mapping (``source`` names it in errors).
+
+    ``allow`` lists further top-level tables that the caller handles (e.g.
+    ``sweep`` and ``monte_carlo`` of a battery file); they are returned in
+    ``Scenario.extra``.
+    """
+    for key in data:
+        if key not in TOP_LEVEL and key not in allow:
+            raise ScenarioError(
+                f"{source}: unknown top-level field {key!r}; allowed: "
+                + ", ".join(TOP_LEVEL + allow)
+            )
+    name = data.get("name", Path(source).stem)
+    if not isinstance(name, str):
+        raise ScenarioError(f"{source}: field 'name' = {name!r}: must be a string")
+
+    plant_in = _table(source, data, "plant")
+    _check_fields(source, "[plant]", plant_in, PLANT_FIELDS)
+    plant = {**PLANT_FIELDS, **plant_in}
+    _first(source, "[plant]", plant_problems(plant))
+    plant = {k: float(v) for k, v in plant.items()}
+
+    man_in = _table(source, data, "maneuver")
+    _check_fields(source, "[maneuver]", man_in, MANEUVER_FIELDS)
+    values = {**MANEUVER_DEFAULTS, **man_in}
+    _first(source, "[maneuver]", maneuver_problems(values))
+    maneuver = Maneuver(**{k: (int(v) if isinstance(MANEUVER_DEFAULTS[k], int)
+                               and not isinstance(v, str) else v) for k, v in values.items()})
+    maneuver.x_ref, maneuver.T = float(maneuver.x_ref), float(maneuver.T)
+    maneuver.duration, maneuver.noise_std = float(maneuver.duration), float(maneuver.noise_std)
+
+    tables = data.get("controller", [])
+    if isinstance(tables, dict):
+        tables = [tables]
+    if not isinstance(tables, list) or not tables:
+        raise ScenarioError(f"{source}: needs at least one [[controller]] table")
+    controllers, labels = [], []
+    for i, table in enumerate(tables, start=1):
+        where = f"[[controller]] #{i}"
+        if not isinstance(table, dict):
+            raise ScenarioError(f"{source}: {where} must be a table")
+        kind = table.get("kind")
+        if not isinstance(kind, str) or kind not in CONTROLLER_KINDS:
+            raise ScenarioError(
+                f"{source}: {where} field 'kind' = {kind!r}: must be one of "
+                + ", ".join(repr(k) for k in sorted(CONTROLLER_KINDS))
+            )
+        allowed = settings_for_kind(kind) + ["label"]
+        _check_fields(source, where, table, allowed, f" for kind {kind!r}")
+        label = table.get("label")
+        if label is not None and not isinstance(label, str):
+            raise ScenarioError(f"{source}: {where} field 'label' = {label!r}: must be a string")
+        settings = ControllerSettings.from_mapping({k: v for k, v in table.items() if k != "label"})
+        _first(source, where, settings.problems(tuple(CONTROLLER_KINDS)))
+        controllers.append(settings)
+        labels.append(controller_label(settings, label))
+    if len(set(labels)) != len(labels):
+        raise ScenarioError(
+            f"{source}: two [[controller]] tables have the same label; give each a 'label'"
+        )
+    extra = {k: data[k] for k in allow if k in data}
+    return Scenario(name, plant, maneuver, controllers, labels, source, extra)
