@@ -15,3 +15,7 @@ class FmuError(PapwcError, RuntimeError):
 
 class BuildError(PapwcError, RuntimeError):
     """An FMU or SSP could not be built."""
+
+
+class BatteryError(PapwcError):
+    """A battery cannot run: its output folder, journal, FMU or cluster is not usable."""

@@ -32,22 +32,29 @@ def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> P
     return current_fmu("FrictionPlant", Path(out) / "fmu")
 
 
-def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None):
-    """A plant with the scenario's parameters: ``"fmu"`` (an FMU file) or ``"physics"``."""
-    slave = PhysicsSlave() if plant == "physics" else FmuSlave(fmu)
+def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
+               unzip_dir: str | os.PathLike | None = None):
+    """A plant with the scenario's parameters: ``"fmu"`` (an FMU file) or ``"physics"``.
+
+    ``unzip_dir`` is an extracted copy of the FMU to use (a battery worker
+    extracts it once).
+    """
+    slave = PhysicsSlave() if plant == "physics" else FmuSlave(fmu, unzip_dir=unzip_dir)
     slave.set_start_values(dict(scenario.plant))
     return slave
 
 
 def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
-                 progress=None) -> list[RunResult]:
+                 progress=None, unzip_dir: str | os.PathLike | None = None) -> list[RunResult]:
     """Run every controller of the scenario (each with a fresh plant instance).
 
-    ``fmu`` is the plant FMU's path when ``plant`` is ``"fmu"``.
+    ``fmu`` is the plant FMU's path when ``plant`` is ``"fmu"`` (and
+    ``unzip_dir`` an extracted copy of it, if there is one); ``progress`` is
+    called with each controller's result as it finishes.
     """
     results = []
     for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
-        slave = make_plant(scenario, plant, fmu)
+        slave = make_plant(scenario, plant, fmu, unzip_dir)
         try:
             results.append(run_controller(slave, settings, scenario.maneuver, label))
         finally:

@@ -33,13 +33,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build the FMUs unless given, run every bench section, print the figures; return 0."""
-    from papwc.bench import BenchContext, run_sections
+    from papwc.bench import BenchContext, load_sections, run_sections
     from papwc.fmubuild.fmus import build_all
 
+    sections = load_sections()
     if args.fmu_dir is not None:
-        run_sections(BenchContext(fmu_dir=args.fmu_dir, quick=args.quick))
+        run_sections(BenchContext(fmu_dir=args.fmu_dir, quick=args.quick), sections)
         return 0
     with tempfile.TemporaryDirectory(prefix="papwcbench") as tmp:
         build_all(Path(tmp))
-        run_sections(BenchContext(fmu_dir=Path(tmp), quick=args.quick))
+        run_sections(BenchContext(fmu_dir=Path(tmp), quick=args.quick), sections)
     return 0

@@ -1,0 +1,176 @@
+"""Resolving a battery into runs: the grid, the draws, one validated scenario per run."""
+
+from __future__ import annotations
+
+import copy
+import hashlib
+import itertools
+import json
+import random
+from dataclasses import dataclass
+
+from papwc.battery.schema import Battery, is_number
+from papwc.controllers.settings import ControllerSettings
+from papwc.errors import ScenarioError
+from papwc.master import Maneuver
+from papwc.scenario import (
+    PLANT_FIELDS,
+    parse_scenario,
+)
+
+# --- resolving runs -------------------------------------------------------------------------
+
+
+@dataclass
+class RunSpec:
+    """One resolved run of a battery.
+
+    Attributes
+    ----------
+    battery : str
+        Name of the battery it belongs to.
+    run_id : str
+        Stable id within the battery (from its grid point and draw).
+    order : tuple of int
+        (battery number, grid point, draw): the order of results.
+    data : dict
+        The scenario of this run, every varied field replaced.
+    run_hash : str
+        First 12 hex digits of the SHA-256 of ``data`` as canonical JSON.
+    error : str
+        Why ``data`` is not a valid scenario ("" if it is).
+    """
+
+    battery: str
+    run_id: str
+    order: tuple[int, int, int]
+    data: dict
+    run_hash: str
+    error: str = ""
+
+    def task(self, source: str) -> dict:
+        """What a worker needs to run it (picklable)."""
+        return {"battery": self.battery, "run_id": self.run_id, "run_hash": self.run_hash,
+                "source": source, "data": self.data}
+
+
+def controller_tables(data: dict) -> list[dict]:
+    tables = data.get("controller", [])
+    return [tables] if isinstance(tables, dict) else list(tables)
+
+
+def _default(head: str, name: str):
+    if head == "plant":
+        return PLANT_FIELDS[name]
+    if head == "maneuver":
+        return getattr(Maneuver(), name)
+    return getattr(ControllerSettings(), ControllerSettings.KEY_ALIASES.get(name, name))
+
+
+def get_field(data: dict, path: str, table: int | None = None):
+    """Value of ``path`` in a scenario mapping (its default if absent).
+
+    ``table`` (0-based) picks the ``[[controller]]`` table of a ``controller.F``
+    path; ``controller.N.F`` names its table itself.
+    """
+    parts = path.split(".")
+    if parts[0] in ("plant", "maneuver"):
+        return data.get(parts[0], {}).get(parts[1], _default(parts[0], parts[1]))
+    if len(parts) == 3:
+        table = int(parts[1]) - 1
+    tables = controller_tables(data)
+    if table is None or not 0 <= table < len(tables):
+        return None
+    return tables[table].get(parts[-1], _default("controller", parts[-1]))
+
+
+def _set_field(data: dict, path: str, value, table: int | None = None) -> None:
+    parts = path.split(".")
+    if parts[0] in ("plant", "maneuver"):
+        data.setdefault(parts[0], {})[parts[1]] = value
+        return
+    if isinstance(data.get("controller"), dict):
+        data["controller"] = [data["controller"]]
+    tables = data["controller"]
+    if len(parts) == 3:
+        tables[int(parts[1]) - 1][parts[2]] = value
+    elif table is not None:
+        tables[table][parts[1]] = value
+    else:
+        for t in tables:
+            t[parts[1]] = value
+
+
+def _uniform(seed: int, draw: int, path: str) -> float:
+    """The number in (0, 1) of field ``path`` in draw ``draw``."""
+    u = random.Random(f"papwc-battery:{seed}:{draw}:{path}").random()
+    return u if u > 0.0 else 2.0**-60
+
+
+def _hash(data: dict) -> str:
+    text = json.dumps(data, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def _apply_draws(battery: Battery, data: dict, draw: int) -> None:
+    """Replace the drawn fields of ``data`` (one grid point) for draw ``draw``."""
+    ordered = [d for d in battery.draws if d.of is None] + [d for d in battery.draws if d.of]
+    for d in ordered:
+        u = _uniform(battery.seed, draw, d.path)
+        of_value = None
+        if d.of is not None:
+            of_value = get_field(data, d.of)
+            if not is_number(of_value):
+                raise ScenarioError(f"{battery.source}: [monte_carlo] field {d.path!r}: "
+                                    f"of = {d.of!r} is {of_value!r}, not a number")
+        parts = d.path.split(".")
+        if parts[0] == "controller" and len(parts) == 2:
+            targets = list(range(battery.n_controllers))
+        else:
+            targets = [None]
+        for table in targets:
+            nominal = get_field(data, d.path, table)
+            if d.needs_nominal() and not is_number(nominal):
+                raise ScenarioError(
+                    f"{battery.source}: [monte_carlo] field {d.path!r}: the nominal value "
+                    f"is {nominal!r}; give it in the file or use low/high or mean/std")
+            _set_field(data, d.path, d.value(u, nominal, of_value), table)
+
+
+def plan_runs(batteries: list[Battery]) -> list[RunSpec]:
+    """Every run of the batteries, resolved and validated, in result order.
+
+    Raises
+    ------
+    ScenarioError
+        If two batteries have the same name or a draw cannot be resolved.
+    """
+    names = [b.name for b in batteries]
+    for name in names:
+        if names.count(name) > 1:
+            sources = [b.source for b in batteries if b.name == name]
+            raise ScenarioError(f"{sources[1]}: field 'name' = {name!r} is also the name of "
+                                f"{sources[0]}; battery names must differ")
+    runs = []
+    for bi, battery in enumerate(batteries):
+        grid = list(itertools.product(*(values for _, values in battery.sweep)))
+        gw = max(1, len(str(len(grid) - 1)))
+        dw = max(3, len(str(battery.n - 1)))
+        for gi, point in enumerate(grid):
+            point_data = copy.deepcopy(battery.data)
+            for (path, _), value in zip(battery.sweep, point, strict=True):
+                _set_field(point_data, path, value)
+            for di in range(battery.n):
+                data = copy.deepcopy(point_data)
+                if battery.monte_carlo:
+                    _apply_draws(battery, data, di)
+                ids = ([f"s{gi:0{gw}d}"] if battery.sweep else []) + (
+                    [f"d{di:0{dw}d}"] if battery.monte_carlo else [])
+                run_id = "-".join(ids) or "nominal"
+                spec = RunSpec(battery.name, run_id, (bi, gi, di), data, _hash(data))
+                try:
+                    parse_scenario(data, f"{battery.source} run {run_id}")
+                except ScenarioError as exc:
+                    spec.error = str(exc)
+                runs.append(spec)
+    return runs

@@ -1,0 +1,227 @@
+"""The battery's results: results.csv, runs.csv, summary.md and the plots."""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+from papwc.battery.plan import RunSpec, controller_tables, get_field
+from papwc.battery.schema import Battery
+from papwc.controllers.settings import ControllerSettings
+from papwc.scenario import (
+    PLANT_FIELDS,
+    controller_label,
+)
+
+# --- results ---------------------------------------------------------------------------------
+
+
+#: Metrics per iteration, as :func:`papwc.master.summarize` returns them.
+METRICS = ("final_error_m", "pulses", "settle_time_s", "limit_cycle", "cycle_p2p_m",
+           "b_hat", "f_c_hat")
+
+
+def _label_of(table: dict, i: int) -> str:
+    """Label of a controller table that may not be valid."""
+    label = table.get("label") if isinstance(table, dict) else None
+    if isinstance(label, str) and label:
+        return label
+    try:
+        t = float(table.get("t_p_max", math.inf))
+        kind = str(table.get("kind"))
+    except (TypeError, ValueError, AttributeError):
+        return f"controller{i + 1}"
+    return controller_label(ControllerSettings(kind=kind, t_p_max=t))
+
+
+def result_rows(batteries: list[Battery], runs: list[RunSpec], records: dict) -> list[dict]:
+    """Rows of results.csv: per run, controller and iteration, in run order."""
+    by_name = {b.name: b for b in batteries}
+    rows = []
+    for spec in runs:
+        rec = records[(spec.battery, spec.run_id)]
+        battery = by_name[spec.battery]
+        base = {"battery": spec.battery, "run_id": spec.run_id, "run_hash": spec.run_hash}
+        ctrls = rec["controllers"]
+        if not ctrls:
+            for i, table in enumerate(controller_tables(spec.data)):
+                row = {**base, "controller": _label_of(table, i),
+                       "kind": table.get("kind", "") if isinstance(table, dict) else "",
+                       "iteration": "", "last_iteration": True}
+                row.update({p: _varied_value(spec.data, p, i) for p in battery.varied})
+                row.update({"success": False, "status": "error", "message": rec["message"]})
+                rows.append(row)
+            continue
+        for i, c in enumerate(ctrls):
+            tol = (battery.success_tolerance if battery.success_tolerance is not None
+                   else c["tolerance"])
+            entries = [dict(it) for it in c["iterations"]]
+            if c["error"] and (not entries or not entries[-1]["error"]):
+                entries.append({"iteration": len(entries) + 1, "error": c["error"]})
+            for j, it in enumerate(entries):
+                row = {**base, "controller": c["label"], "kind": c["kind"],
+                       "iteration": it["iteration"], "last_iteration": j == len(entries) - 1}
+                row.update({p: _varied_value(spec.data, p, i) for p in battery.varied})
+                row.update({m: it.get(m, "") for m in METRICS})
+                ok = not it["error"]
+                row["success"] = bool(ok and abs(it["final_error_m"]) <= tol
+                                      and not it["limit_cycle"])
+                row["status"] = "ok" if ok else "error"
+                row["message"] = it["error"]
+                rows.append(row)
+    return rows
+
+
+def _varied_value(data: dict, path: str, table: int):
+    return get_field(data, path, table if path.startswith("controller.") else None)
+
+
+def _flatten(data: dict) -> dict:
+    out = {f"plant.{k}": v for k, v in PLANT_FIELDS.items()}
+    out.update({f"plant.{k}": v for k, v in data.get("plant", {}).items()})
+    out.update({f"maneuver.{k}": v for k, v in data.get("maneuver", {}).items()})
+    for i, table in enumerate(controller_tables(data), start=1):
+        if isinstance(table, dict):
+            out.update({f"controller.{i}.{k}": v for k, v in table.items()})
+    return out
+
+
+def _stats(values: list[float]) -> tuple[float, float, float]:
+    import numpy as np
+
+    if not values:
+        return (math.nan, math.nan, math.nan)
+    a = np.asarray(values, dtype=float)
+    return float(np.median(a)), float(np.percentile(a, 95)), float(a.max())
+
+
+def _fmt(x: float, spec: str) -> str:
+    return "–" if isinstance(x, float) and math.isnan(x) else format(x, spec)
+
+
+def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[dict],
+                     fmu_sha256: str) -> str:
+    """The text of summary.md."""
+    lines = ["# Battery results", ""]
+    failed_keys = {(r["battery"], r["run_id"]) for r in rows if r["status"] == "error"}
+    n_err = len(failed_keys)
+    lines.append(f"{len(runs)} runs, {n_err} with status error. Plant FMU SHA-256: "
+                 f"`{fmu_sha256[:16]}…`.")
+    lines += ["", "**Success**: a controller succeeds in a run when, in the last iteration, "
+              "the run has status ok, |final error| <= the success tolerance (the battery's "
+              "`success_tolerance`, else the controller's `tolerance`) and there is no limit "
+              "cycle (pulses in both directions in the final quarter of the iteration). "
+              "Errors and pulses are taken over the runs with status ok, in the last "
+              "iteration; settle times over those that settled.", ""]
+    last = [r for r in rows if r["last_iteration"]]
+    for battery in batteries:
+        b_runs = [s for s in runs if s.battery == battery.name]
+        tol = (f"{battery.success_tolerance:g} m" if battery.success_tolerance is not None
+               else "each controller's tolerance")
+        grid = math.prod(len(v) for _, v in battery.sweep)
+        lines += [f"## {battery.name}", "",
+                  f"File `{battery.source}`: {len(b_runs)} runs ({grid} grid point(s) × "
+                  f"{battery.n} draw(s)"
+                  + (f", seed {battery.seed}" if battery.monte_carlo else "")
+                  + f"); success tolerance: {tol}.", ""]
+        if battery.varied:
+            lines += ["Varied: " + ", ".join(f"`{p}`" for p in battery.varied) + ".", ""]
+        lines += ["| controller | runs | errors | success | limit cycles | abs(e) median (m) | "
+                  "abs(e) p95 (m) | abs(e) max (m) | pulses median | p95 | max | settled | "
+                  "settle median (s) | p95 | max |",
+                  "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        b_rows = [r for r in last if r["battery"] == battery.name]
+        for label in dict.fromkeys(r["controller"] for r in b_rows):
+            cr = [r for r in b_rows if r["controller"] == label]
+            ok = [r for r in cr if r["status"] == "ok"]
+            succ = sum(1 for r in cr if r["success"])
+            cycles = sum(1 for r in ok if r["limit_cycle"])
+            e = _stats([abs(r["final_error_m"]) for r in ok])
+            p = _stats([float(r["pulses"]) for r in ok])
+            settled = [r["settle_time_s"] for r in ok if not math.isnan(r["settle_time_s"])]
+            s = _stats(settled)
+            lines.append(
+                f"| {label} | {len(cr)} | {len(cr) - len(ok)} | {succ / len(cr):.1%} | "
+                f"{cycles} | {_fmt(e[0], '.3g')} | {_fmt(e[1], '.3g')} | {_fmt(e[2], '.3g')} | "
+                f"{_fmt(p[0], '.0f')} | {_fmt(p[1], '.1f')} | {_fmt(p[2], '.0f')} | "
+                f"{len(settled)} | {_fmt(s[0], '.3f')} | {_fmt(s[1], '.3f')} | "
+                f"{_fmt(s[2], '.3f')} |")
+        lines += ["", f"Distribution of |final error|: `final_error_{battery.name}.png`.", ""]
+        failed = [s for s in b_runs if (s.battery, s.run_id) in failed_keys]
+        if failed:
+            lines += [f"Runs with status error ({len(failed)}):", ""]
+            for s in failed[:20]:
+                msg = next(r["message"] for r in rows if r["battery"] == s.battery
+                           and r["run_id"] == s.run_id and r["status"] == "error")
+                lines.append(f"- `{s.run_id}`: {msg}")
+            if len(failed) > 20:
+                lines.append(f"- … and {len(failed) - 20} more (see results.csv)")
+            lines.append("")
+    return "\n".join(lines)
+
+
+def plot_final_errors(battery: Battery, rows: list[dict], path: Path) -> None:
+    """Empirical CDF of |final error| per controller (last iteration), log x axis, as PNG."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(7, 4.2))
+    FigureCanvasAgg(fig)
+    ax = fig.add_subplot()
+    floor = 1e-12
+    last = [r for r in rows if r["last_iteration"] and r["battery"] == battery.name
+            and r["status"] == "ok"]
+    tols = {}
+    for label in dict.fromkeys(r["controller"] for r in last):
+        errs = sorted(max(abs(r["final_error_m"]), floor) for r in last
+                      if r["controller"] == label)
+        n = len(errs)
+        ax.step(errs, [(i + 1) / n for i in range(n)], where="post", label=f"{label} ({n})")
+    if battery.success_tolerance is not None:
+        tols["success tolerance"] = battery.success_tolerance
+    for name, tol in tols.items():
+        if tol > 0:
+            ax.axvline(tol, color="k", ls=":", lw=1, label=f"{name} {tol:g} m")
+    ax.set_xscale("log")
+    ax.set_xlabel(f"|final error| in the last iteration, m (values below {floor:g} drawn at it)")
+    ax.set_ylabel("fraction of runs")
+    ax.set_ylim(0.0, 1.02)
+    ax.set_title(f"{battery.name}: final error per controller")
+    ax.grid(True, which="both", alpha=0.3)
+    if last:
+        ax.legend(loc="lower right", fontsize=8)
+    fig.tight_layout()
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=110)
+    os.replace(tmp, path)
+
+
+def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], records: dict,
+                  fmu_sha256: str) -> list[Path]:
+    """Write results.csv, runs.csv, summary.md and the plots from the records."""
+    from papwc.output import write_rows
+
+    rows = result_rows(batteries, runs, records)
+    varied = list(dict.fromkeys(p for b in batteries for p in b.varied))
+    columns = (["battery", "run_id", "run_hash", "controller", "kind", "iteration",
+                "last_iteration"] + varied + list(METRICS) + ["success", "status", "message"])
+    paths = [out / "results.csv", out / "runs.csv", out / "summary.md"]
+    write_rows(paths[0], rows, columns)
+    run_rows = []
+    for spec in runs:
+        rec = records[(spec.battery, spec.run_id)]
+        run_rows.append({"battery": spec.battery, "run_id": spec.run_id,
+                         "run_hash": spec.run_hash, "status": rec["status"],
+                         "message": rec["message"], **_flatten(spec.data)})
+    run_columns = ["battery", "run_id", "run_hash", "status", "message"]
+    run_columns += list(dict.fromkeys(k for r in run_rows for k in r if k not in run_columns))
+    write_rows(paths[1], run_rows, run_columns)
+    tmp = paths[2].with_name("summary.md.tmp")
+    tmp.write_text(summary_markdown(batteries, runs, rows, fmu_sha256), encoding="utf-8")
+    os.replace(tmp, paths[2])
+    for battery in batteries:
+        png = out / f"final_error_{battery.name}.png"
+        plot_final_errors(battery, rows, png)
+        paths.append(png)
+    return paths

@@ -1,0 +1,261 @@
+"""Battery files: the ``[sweep]``, ``[monte_carlo]`` and ``[battery]`` tables, validated.
+
+See :mod:`papwc.battery` for the syntax.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+from statistics import NormalDist
+
+from papwc.controllers.settings import ControllerSettings
+from papwc.errors import ScenarioError
+from papwc.scenario import (
+    MANEUVER_FIELDS,
+    PLANT_FIELDS,
+    parse_scenario,
+    read_toml,
+)
+
+BATTERY_TABLES = ("sweep", "monte_carlo", "battery")
+#: Fields that cannot be drawn from a distribution (whole numbers or words).
+NOT_DRAWABLE = {"maneuver.iterations", "maneuver.noise_seed", "maneuver.timing",
+                "controller.rest_samples", "controller.kind", "controller.label"}
+DISTRIBUTIONS = {
+    "uniform": (("rel",), ("abs",), ("low", "high")),
+    "normal": (("std",), ("rel_std",), ("mean", "std")),
+}
+
+
+# --- battery files ------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Distribution:
+    """How one field is drawn in a Monte Carlo battery (see the module docstring)."""
+
+    path: str
+    dist: str
+    params: dict[str, float]
+    of: str | None = None
+
+    def needs_nominal(self) -> bool:
+        """Whether the draw is relative to (or centred on) the field's nominal value."""
+        return "rel" in self.params or "abs" in self.params or "rel_std" in self.params or (
+            self.dist == "normal" and "mean" not in self.params)
+
+    def value(self, u: float, nominal: float | None, of_value: float | None) -> float:
+        """The drawn value for the uniform number ``u`` in (0, 1)."""
+        p = self.params
+        if self.dist == "uniform":
+            if "rel" in p:
+                return nominal * (1.0 + p["rel"] * (2.0 * u - 1.0))
+            if "abs" in p:
+                return nominal + p["abs"] * (2.0 * u - 1.0)
+            x = p["low"] + (p["high"] - p["low"]) * u
+        else:
+            z = NormalDist().inv_cdf(u)
+            if "rel_std" in p:
+                return nominal * (1.0 + p["rel_std"] * z)
+            x = p.get("mean", nominal) + p["std"] * z
+        return x * of_value if self.of is not None else x
+
+
+@dataclass
+class Battery:
+    """A validated battery file.
+
+    Attributes
+    ----------
+    name, source : str
+        The scenario's name and the file it was read from.
+    data : dict
+        The file's scenario (the battery tables removed), the nominal run.
+    n_controllers : int
+        Number of ``[[controller]]`` tables.
+    sweep : list of (path, values)
+        The grid, first path slowest.
+    draws : list of Distribution
+        The Monte Carlo fields, in file order.
+    n : int
+        Draws per grid point (1 without ``[monte_carlo]``).
+    seed : int
+        Seed of the draws.
+    success_tolerance : float or None
+        Error band of a success, m; ``None``: each controller's tolerance.
+    """
+
+    name: str
+    source: str
+    data: dict
+    n_controllers: int
+    sweep: list[tuple[str, list]] = field(default_factory=list)
+    draws: list[Distribution] = field(default_factory=list)
+    n: int = 1
+    seed: int = 0
+    monte_carlo: bool = False
+    success_tolerance: float | None = None
+
+    @property
+    def varied(self) -> list[str]:
+        """Paths that differ between runs, sweep first."""
+        out = [p for p, _ in self.sweep]
+        return out + [d.path for d in self.draws if d.path not in out]
+
+
+def load_battery(path: str | os.PathLike) -> Battery:
+    """Read and validate a battery file.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the field that are wrong.
+    """
+    return parse_battery(read_toml(path, "battery"), str(path))
+
+
+def is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _check_path(source: str, table: str, path: str, n_controllers: int, drawn: bool) -> None:
+    """Raise ScenarioError unless ``path`` names a field a battery can vary."""
+    parts = path.split(".")
+    where = f"{source}: [{table}] field {path!r}"
+    head = parts[0]
+    if head == "plant" and len(parts) == 2:
+        if parts[1] not in PLANT_FIELDS:
+            raise ScenarioError(f"{where}: [plant] has no field {parts[1]!r}; allowed: "
+                                + ", ".join(PLANT_FIELDS))
+        name = parts[1]
+    elif head == "maneuver" and len(parts) == 2:
+        if parts[1] not in MANEUVER_FIELDS:
+            raise ScenarioError(f"{where}: [maneuver] has no field {parts[1]!r}; allowed: "
+                                + ", ".join(MANEUVER_FIELDS))
+        name = parts[1]
+    elif head == "controller" and len(parts) in (2, 3):
+        name = parts[-1]
+        if len(parts) == 3:
+            if not parts[1].isdigit() or not 1 <= int(parts[1]) <= n_controllers:
+                raise ScenarioError(
+                    f"{where}: {parts[1]!r} is not a [[controller]] table number "
+                    f"(1 to {n_controllers})")
+        allowed = [k for k in ControllerSettings.field_names() if k != "kind"]
+        if name not in allowed:
+            raise ScenarioError(f"{where}: [[controller]] field {name!r} cannot be varied; "
+                                "allowed: " + ", ".join(allowed))
+    else:
+        raise ScenarioError(
+            f"{where}: not a field path; write plant.FIELD, maneuver.FIELD, "
+            "controller.FIELD or controller.N.FIELD")
+    if drawn and f"{head}.{name}" in NOT_DRAWABLE:
+        raise ScenarioError(f"{where}: only floating-point fields can be drawn from a "
+                            "distribution; use [sweep] for it")
+
+
+def parse_battery(data: dict, source: str) -> Battery:
+    """Validate a battery given as a mapping (``source`` names it in errors).
+
+    The scenario part is checked by :func:`papwc.scenario.parse_scenario`, the
+    ``[sweep]``, ``[monte_carlo]`` and ``[battery]`` tables here.
+    """
+    nominal = parse_scenario(data, source, allow=BATTERY_TABLES)
+    scenario_data = {k: v for k, v in data.items() if k not in BATTERY_TABLES}
+    n_ctrl = len(nominal.controllers)
+    battery = Battery(nominal.name, source, scenario_data, n_ctrl)
+
+    sweep = data.get("sweep", {})
+    if not isinstance(sweep, dict):
+        raise ScenarioError(f"{source}: [sweep] must be a table of path = [values]")
+    for path, values in sweep.items():
+        _check_path(source, "sweep", path, n_ctrl, drawn=False)
+        if not isinstance(values, list) or not values:
+            raise ScenarioError(f"{source}: [sweep] field {path!r} = {values!r}: must be a "
+                                "non-empty array of values")
+        for v in values:
+            if not (is_number(v) or isinstance(v, str)):
+                raise ScenarioError(f"{source}: [sweep] field {path!r}: value {v!r} must be "
+                                    "a number or a string")
+        battery.sweep.append((path, list(values)))
+
+    mc = data.get("monte_carlo")
+    if mc is not None:
+        if not isinstance(mc, dict):
+            raise ScenarioError(f"{source}: [monte_carlo] must be a table")
+        battery.monte_carlo = True
+        n = mc.get("n")
+        if not (isinstance(n, int) and not isinstance(n, bool) and n >= 1):
+            raise ScenarioError(f"{source}: [monte_carlo] field 'n' = {n!r}: must be a whole "
+                                "number >= 1 (the number of draws)")
+        seed = mc.get("seed", 0)
+        if not (isinstance(seed, int) and not isinstance(seed, bool) and seed >= 0):
+            raise ScenarioError(f"{source}: [monte_carlo] field 'seed' = {seed!r}: must be a "
+                                "whole number >= 0")
+        battery.n, battery.seed = n, seed
+        for path, spec in mc.items():
+            if path in ("n", "seed"):
+                continue
+            battery.draws.append(_parse_distribution(source, path, spec, n_ctrl))
+        ratio_paths = {d.path for d in battery.draws if d.of is not None}
+        for d in battery.draws:
+            if d.of is not None and d.of in ratio_paths:
+                raise ScenarioError(f"{source}: [monte_carlo] field {d.path!r}: of = {d.of!r} "
+                                    "is itself drawn as a ratio; ratios cannot be chained")
+        if not battery.draws:
+            raise ScenarioError(f"{source}: [monte_carlo] draws nothing; add fields such as "
+                                "\"plant.m\" = { dist = \"uniform\", rel = 0.3 }")
+
+    opts = data.get("battery", {})
+    if not isinstance(opts, dict):
+        raise ScenarioError(f"{source}: [battery] must be a table")
+    for key, value in opts.items():
+        if key != "success_tolerance":
+            raise ScenarioError(f"{source}: [battery] unknown field {key!r}; allowed: "
+                                "success_tolerance")
+        if not (is_number(value) and math.isfinite(value) and value >= 0.0):
+            raise ScenarioError(f"{source}: [battery] field 'success_tolerance' = {value!r}: "
+                                "must be a number >= 0 (m)")
+        battery.success_tolerance = float(value)
+    return battery
+
+
+def _parse_distribution(source: str, path: str, spec, n_ctrl: int) -> Distribution:
+    where = f"{source}: [monte_carlo] field {path!r}"
+    _check_path(source, "monte_carlo", path, n_ctrl, drawn=True)
+    if not isinstance(spec, dict):
+        raise ScenarioError(f"{where} = {spec!r}: must be a table such as "
+                            "{ dist = \"uniform\", rel = 0.3 }")
+    dist = spec.get("dist")
+    if dist not in DISTRIBUTIONS:
+        raise ScenarioError(f"{where}: dist = {dist!r}: must be one of "
+                            + ", ".join(repr(d) for d in DISTRIBUTIONS))
+    of = spec.get("of")
+    params = {k: v for k, v in spec.items() if k not in ("dist", "of")}
+    forms = DISTRIBUTIONS[dist]
+    if of is not None:
+        forms = forms[-1:]
+    form = next((f for f in forms if set(params) == set(f)), None)
+    if form is None and dist == "normal" and of is None and set(params) == {"std"}:
+        form = ("std",)
+    if form is None:
+        allowed = " or ".join("{" + ", ".join(f) + "}" for f in forms)
+        raise ScenarioError(f"{where}: a {dist} distribution{' with of' if of else ''} takes "
+                            f"{allowed}; got {{{', '.join(params)}}}")
+    for key, value in params.items():
+        if not (is_number(value) and math.isfinite(value)):
+            raise ScenarioError(f"{where}: {key} = {value!r}: must be a finite number")
+        if key in ("rel", "abs", "std", "rel_std") and value < 0.0:
+            raise ScenarioError(f"{where}: {key} = {value!r}: must be >= 0")
+    if "low" in params and not params["low"] <= params["high"]:
+        raise ScenarioError(f"{where}: low = {params['low']!r} must be <= high = "
+                            f"{params['high']!r}")
+    if of is not None:
+        if not isinstance(of, str) or of.split(".")[0] not in ("plant", "maneuver"):
+            raise ScenarioError(f"{where}: of = {of!r}: must be a plant.FIELD or "
+                                "maneuver.FIELD path")
+        _check_path(source, "monte_carlo", of, n_ctrl, drawn=True)
+        if of == path:
+            raise ScenarioError(f"{where}: of = {of!r} names the field itself")
+    return Distribution(path, dist, {k: float(v) for k, v in params.items()}, of)

@@ -1,0 +1,172 @@
+"""Running one run in a worker process: the FMU extracted once, every controller of the run."""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from papwc.scenario import (
+    parse_scenario,
+)
+
+# --- running one run (in a worker) ----------------------------------------------------------
+
+_FMU_CACHE: dict[str, tuple[str, str]] = {}
+_FMU_LOCK = threading.Lock()
+
+
+#: Prefix of the temporary folders of a worker process; the process id follows it.
+_TMP_PREFIX = "papwcbattery"
+
+
+def _private_dir() -> str:
+    """A temporary folder named after this process; those of dead processes are removed."""
+    root = Path(tempfile.gettempdir())
+    for entry in root.glob(f"{_TMP_PREFIX}*_*"):
+        pid = entry.name[len(_TMP_PREFIX):].split("_", 1)[0]
+        if pid.isdigit() and int(pid) != os.getpid() and not _alive(int(pid)):
+            shutil.rmtree(entry, ignore_errors=True)
+    return tempfile.mkdtemp(prefix=f"{_TMP_PREFIX}{os.getpid()}_")
+
+
+def _extract(fmu_path: str) -> str:
+    """Extract an FMU into a private temporary folder removed when the process exits.
+
+    A process killed before it could remove its folder leaves it behind; the
+    next worker that extracts an FMU removes it.
+    """
+    from fmpy import extract
+
+    unzip_dir = _private_dir()
+    extract(fmu_path, unzipdir=unzip_dir)
+    import atexit
+    from multiprocessing import util
+
+    atexit.register(shutil.rmtree, unzip_dir, True)
+    util.Finalize(None, shutil.rmtree, args=(unzip_dir, True), exitpriority=10)
+    return unzip_dir
+
+
+def cached_plant(digest: str, fmu_path: str | None = None, fmu_bytes: bytes | None = None):
+    """(fmu path, extracted folder) of the FMU with SHA-256 ``digest``, extracted once."""
+    with _FMU_LOCK:
+        if digest not in _FMU_CACHE:
+            if fmu_path is None:
+                folder = _private_dir()
+                import atexit
+
+                atexit.register(shutil.rmtree, folder, True)
+                fmu_path = os.path.join(folder, "plant.fmu")
+                with open(fmu_path, "wb") as f:
+                    f.write(fmu_bytes)
+            _FMU_CACHE[digest] = (fmu_path, _extract(fmu_path))
+        return _FMU_CACHE[digest]
+
+
+def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
+    """Run every controller of one resolved run against fresh plant instances.
+
+    Parameters
+    ----------
+    task : dict
+        From :meth:`RunSpec.task`.
+    fmu_path, unzip_dir : str
+        The plant FMU and an extracted copy of it.
+
+    Returns
+    -------
+    dict
+        The journal record: the task's ids and ``params``, ``status`` (``"ok"`` or
+        ``"error"``), ``message``, and per controller its label, kind,
+        tolerance, error and the metrics of every iteration. Exceptions are
+        caught and recorded, never raised.
+    """
+    from papwc.master import summarize
+    from papwc.runner import run_scenario
+
+    start = time.perf_counter()
+    record = {"type": "run", "battery": task["battery"], "run_id": task["run_id"],
+              "run_hash": task["run_hash"], "params": task["data"], "status": "ok",
+              "message": "", "controllers": []}
+    try:
+        scenario = parse_scenario(task["data"], f"{task['source']} run {task['run_id']}")
+        for result in run_scenario(scenario, "fmu", fmu_path, unzip_dir=unzip_dir):
+            settings = result.settings
+            iterations = []
+            for trace in result.traces:
+                metrics = summarize(trace, settings.tolerance)
+                iterations.append({"iteration": trace.iteration, **metrics,
+                                   "error": trace.error})
+            record["controllers"].append({
+                "label": result.label, "kind": settings.kind, "tolerance": settings.tolerance,
+                "error": result.error, "iterations": iterations})
+            if result.error and record["status"] == "ok":
+                record["status"] = "error"
+                record["message"] = f"{result.label}: {result.error}"
+    except Exception as exc:  # noqa: BLE001 - a failing run is recorded, the battery goes on
+        record["status"] = "error"
+        record["message"] = f"{type(exc).__name__}: {exc}"
+    record["elapsed_s"] = time.perf_counter() - start
+    return record
+
+
+def error_record(task: dict, message: str) -> dict:
+    """The journal record of a run that could not run (``task`` from :meth:`RunSpec.task`)."""
+    return {"type": "run", "battery": task["battery"], "run_id": task["run_id"],
+            "run_hash": task["run_hash"], "params": task["data"], "status": "error",
+            "message": message, "controllers": [], "elapsed_s": 0.0}
+
+
+_LOCAL: dict[str, str] = {}
+
+
+def _alive(pid: int) -> bool:
+    """Whether process ``pid`` runs (a zombie does not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return True
+    return stat.rsplit(")", 1)[-1].split()[0] not in ("Z", "X")
+
+
+def _watch_owner(owner: int) -> None:
+    while True:
+        time.sleep(0.5)
+        if not _alive(owner):
+            if "unzip_dir" in _LOCAL:
+                shutil.rmtree(_LOCAL["unzip_dir"], ignore_errors=True)
+            os._exit(1)
+
+
+def init_local_worker(fmu_path: str, owner: int) -> None:
+    """Initializer of a local worker process: extract the FMU once, ignore Ctrl-C.
+
+    The worker exits by itself when ``owner`` (the process running the battery)
+    is gone, e.g. killed: the worker is a child of the forkserver, which would
+    otherwise keep it.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    threading.Thread(target=_watch_owner, args=(owner,), daemon=True).start()
+    _LOCAL["fmu_path"] = fmu_path
+    _LOCAL["unzip_dir"] = _extract(fmu_path)
+
+
+def run_in_local_worker(task: dict) -> dict:
+    return execute_run(task, _LOCAL["fmu_path"], _LOCAL["unzip_dir"])
+
+
+def run_in_dask_worker(tasks: list[dict], fmu_bytes: bytes, digest: str) -> list[dict]:
+    """A Dask task: a few runs; the FMU comes as bytes; each worker process extracts it once."""
+    fmu_path, unzip_dir = cached_plant(digest, fmu_bytes=fmu_bytes)
+    return [execute_run(task, fmu_path, unzip_dir) for task in tasks]
