@@ -9,6 +9,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from papwc.commands import add_fmu_option
+
 HELP = "run a battery (sweep and/or Monte Carlo) of a scenario on local processes or Dask"
 
 EPILOG = """\
@@ -39,10 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="local worker processes (default: the number of cores)")
     parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                         help="run on this Dask distributed scheduler instead of local processes")
-    parser.add_argument("--fmu", default=None, metavar="PATH",
-                        help="plant FMU (default: one built from the current sources: the "
-                             "checkout's build/FrictionPlant.fmu if current, else built "
-                             "into DIR/fmu/)")
+    add_fmu_option(parser)
     mode = parser.add_mutually_exclusive_group()
     mode.add_argument("--resume", action="store_true",
                       help="continue the journal in DIR: finished runs are not computed again")

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from papwc.commands import add_fmu_option
+
 HELP = "run the paper's scenario on FrictionPlant.fmu, write figures 1, 3-9 and tables"
 EPILOG = """examples:
   papwc reproduce --out results/reproduce
@@ -17,10 +19,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output folder (default: results/reproduce)")
     parser.add_argument("--scenario", default=None, metavar="FILE",
                         help="scenario file (default: the shipped scenarios/paper.toml)")
-    parser.add_argument("--fmu", default=None, metavar="PATH",
-                        help="plant FMU (default: one built from the current sources: the "
-                             "checkout's build/FrictionPlant.fmu if current, else built "
-                             "into DIR/fmu/)")
+    add_fmu_option(parser)
 
 
 def run(args: argparse.Namespace) -> int:

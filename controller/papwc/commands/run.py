@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from papwc.commands import add_fmu_option
+
 HELP = "run a scenario file (TOML) and write summary.csv, traces and plots"
 EPILOG = """examples:
   papwc run scenarios/paper.toml --out results/paper
@@ -20,10 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plant", choices=("fmu", "physics"), default="fmu",
                         help="step FrictionPlant.fmu through the master (default) or the "
                              "physics in-process")
-    parser.add_argument("--fmu", default=None, metavar="PATH",
-                        help="plant FMU (default: one built from the current sources: the "
-                             "checkout's build/FrictionPlant.fmu if current, else built "
-                             "into DIR/fmu/)")
+    add_fmu_option(parser)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -22,12 +22,7 @@ from pathlib import Path
 import papwc
 from papwc.errors import BuildError
 from papwc.fmubuild.model_description import read_model_description
-from papwc.fmubuild.pythonfmu_build import (
-    STATE_OPTIONS,
-    build_pythonfmu,
-    guid,
-    source_digest,
-)
+from papwc.fmubuild.pythonfmu_build import STATE_OPTIONS, FmuSource, build_pythonfmu, guid
 from papwc.model.plant import PLANT_VARIABLES
 from papwc.model.settings import (
     CONTROLLER_INPUTS,
@@ -94,10 +89,15 @@ class FmuRecipe:
         return {name: PACKAGE_DIR / name for name in self.subpackages}
 
     @property
-    def documentation(self) -> list[Path]:
+    def documentation(self) -> tuple[Path, ...]:
         """The readme, when there is one."""
         readme = self.folder / "readme.md"
-        return [readme] if readme.is_file() else []
+        return (readme,) if readme.is_file() else ()
+
+    def source(self) -> FmuSource:
+        """What the FMU is built from, with the paths of this installation."""
+        return FmuSource(self.script, self.variables, self.package, self.bundle,
+                         self.documentation, options=self.options)
 
 
 #: The FMUs ``papwc build`` writes, in order.
@@ -129,21 +129,14 @@ def recipe(name: str) -> FmuRecipe:
     raise BuildError(f"no FMU named {name!r}; FMUs: " + ", ".join(r.name for r in FMUS))
 
 
-def _arguments(r: FmuRecipe) -> dict:
-    return {"variables": r.variables, "package": r.package or None, "bundle": r.bundle,
-            "documentation": r.documentation, "options": r.options}
-
-
 def fmu_digest(name: str) -> str:
     """Digest of the sources FMU ``name`` would be built from now (its GUID is made of it)."""
-    r = recipe(name)
-    return source_digest(r.script, **_arguments(r))
+    return recipe(name).source().digest()
 
 
 def build_fmu(name: str, out_dir: Path) -> Path:
     """Build FMU ``name`` into ``out_dir``; return the path written."""
-    r = recipe(name)
-    return build_pythonfmu(r.script, out_dir, **_arguments(r))
+    return build_pythonfmu(recipe(name).source(), out_dir)
 
 
 def is_current(path: Path, name: str) -> bool:

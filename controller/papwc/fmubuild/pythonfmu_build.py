@@ -25,14 +25,14 @@ import shutil
 import sys
 import tempfile
 import uuid
-from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from papwc.errors import BuildError
 from papwc.fmubuild.model_description import complete_model_description, rewrite_fmu
 from papwc.model.variables import Variable
 
-__all__ = ["STATE_OPTIONS", "build_pythonfmu", "guid", "source_digest"]
+__all__ = ["STATE_OPTIONS", "FmuSource", "build_pythonfmu", "guid"]
 
 #: CoSimulation capability flags set on every FMU of the project unless told otherwise.
 STATE_OPTIONS: dict[str, bool] = {
@@ -84,42 +84,73 @@ def _files(folder: Path) -> list[Path]:
                   and "__pycache__" not in p.parts and p.suffix not in (".pyc", ".pyo"))
 
 
-def source_digest(
-    script: Path,
-    *,
-    variables: Sequence[Variable],
-    package: str | None = None,
-    bundle: Mapping[str, Path] | None = None,
-    documentation: Iterable[Path] = (),
-    default_experiment: tuple[float, float, float] = (0.0, 1.0, 0.01),
-    options: Mapping[str, bool] | None = None,
-) -> str:
-    """SHA-256 (hex) of everything :func:`build_pythonfmu` builds an FMU from.
+@dataclass(frozen=True)
+class FmuSource:
+    """What one pythonfmu FMU is built from.
 
-    Covers the script, every bundled file (by its place in the bundle), the
-    documentation, the variables' metadata, the options and the pythonfmu
-    version; the arguments are those of :func:`build_pythonfmu`.
+    Attributes
+    ----------
+    script : Path
+        The model script; its ``Fmi2Slave`` class name is the model identifier.
+    variables : tuple of Variable
+        Metadata of every variable the model declares.
+    package : str
+        Name of the bundle package in ``resources/`` (the script imports it); ""
+        for none.
+    bundle : dict of str to Path
+        Subpackage name -> source folder, copied into ``package``.
+    documentation : tuple of Path
+        Files put into the FMU's ``documentation/`` folder.
+    default_experiment : (float, float, float)
+        Start time, stop time and step size (s) written if the model sets none.
+    options : dict of str to bool
+        CoSimulation capability flags.
     """
-    import pythonfmu
 
-    bundle = dict(bundle or {})
-    options = dict(STATE_OPTIONS if options is None else options)
-    extra = repr((package, sorted(options.items()), list(variables), default_experiment))
+    script: Path
+    variables: tuple[Variable, ...]
+    package: str = ""
+    bundle: dict[str, Path] = field(default_factory=dict)
+    documentation: tuple[Path, ...] = ()
+    default_experiment: tuple[float, float, float] = (0.0, 1.0, 0.01)
+    options: dict[str, bool] = field(default_factory=lambda: dict(STATE_OPTIONS))
 
-    h = hashlib.sha256()
+    def check(self) -> None:
+        """Raise BuildError if a source is missing."""
+        name = Path(self.script).stem
+        for source in (self.script, *self.documentation):
+            if not Path(source).is_file():
+                raise BuildError(f"cannot build {name}.fmu: source file {source} does not exist")
+        for source in self.bundle.values():
+            if not Path(source).is_dir():
+                raise BuildError(f"cannot build {name}.fmu: source {source} does not exist")
+        if self.bundle and not self.package:
+            raise BuildError(f"cannot build {name}.fmu: a bundle needs a package name")
 
-    def add(label: str, data: bytes) -> None:
-        h.update(label.encode() + b"\0" + len(data).to_bytes(8, "little") + data)
+    def digest(self) -> str:
+        """SHA-256 (hex) of everything the FMU is built from.
 
-    add("script:" + Path(script).name, Path(script).read_bytes())
-    for name, folder in sorted(bundle.items()):
-        for path in _files(Path(folder)):
-            add(f"bundle:{name}/{path.relative_to(folder).as_posix()}", path.read_bytes())
-    for path in sorted(Path(p) for p in documentation):
-        add("doc:" + path.name, path.read_bytes())
-    add("extra", extra.encode())
-    add("pythonfmu", pythonfmu.__version__.encode())
-    return h.hexdigest()
+        Covers the script, every bundled file (by its place in the bundle), the
+        documentation, the variables' metadata, the options and the pythonfmu
+        version.
+        """
+        import pythonfmu
+
+        h = hashlib.sha256()
+
+        def add(label: str, data: bytes) -> None:
+            h.update(label.encode() + b"\0" + len(data).to_bytes(8, "little") + data)
+
+        add("script:" + Path(self.script).name, Path(self.script).read_bytes())
+        for name, folder in sorted(self.bundle.items()):
+            for path in _files(Path(folder)):
+                add(f"bundle:{name}/{path.relative_to(folder).as_posix()}", path.read_bytes())
+        for path in sorted(Path(p) for p in self.documentation):
+            add("doc:" + path.name, path.read_bytes())
+        add("extra", repr((self.package, sorted(self.options.items()), list(self.variables),
+                           self.default_experiment)).encode())
+        add("pythonfmu", pythonfmu.__version__.encode())
+        return h.hexdigest()
 
 
 def guid(digest: str) -> str:
@@ -127,38 +158,16 @@ def guid(digest: str) -> str:
     return "{" + str(uuid.UUID(digest[:32])) + "}"
 
 
-def build_pythonfmu(
-    script: Path,
-    out_dir: Path,
-    *,
-    variables: Sequence[Variable],
-    package: str | None = None,
-    bundle: Mapping[str, Path] | None = None,
-    documentation: Iterable[Path] = (),
-    default_experiment: tuple[float, float, float] = (0.0, 1.0, 0.01),
-    options: Mapping[str, bool] | None = None,
-) -> Path:
+def build_pythonfmu(source: FmuSource, out_dir: Path) -> Path:
     """Build one pythonfmu FMU, complete its model description, validate it.
 
     Parameters
     ----------
-    script : Path
-        The model script; its ``Fmi2Slave`` class name is the model identifier.
+    source : FmuSource
+        What the FMU is built from.
     out_dir : Path
         Folder the ``<modelIdentifier>.fmu`` is written to (created if needed;
         an existing FMU of that name is replaced).
-    variables : sequence of Variable
-        Metadata of every variable the model declares.
-    package : str, optional
-        Name of the bundle package in ``resources/`` (the script imports it).
-    bundle : mapping of str to Path, optional
-        Subpackage name -> source folder, copied into ``package``.
-    documentation : iterable of Path
-        Files put into the FMU's ``documentation/`` folder.
-    default_experiment : (float, float, float)
-        Start time, stop time and step size (s) written if the model sets none.
-    options : mapping of str to bool, optional
-        CoSimulation capability flags; default :data:`STATE_OPTIONS`.
 
     Returns
     -------
@@ -173,21 +182,10 @@ def build_pythonfmu(
     """
     from fmpy.validation import validate_fmu
 
-    script = Path(script)
-    bundle = dict(bundle or {})
-    documentation = [Path(p) for p in documentation]
-    options = dict(STATE_OPTIONS if options is None else options)
-    for source in (script, *documentation):
-        if not source.is_file():
-            raise BuildError(f"cannot build {script.stem}.fmu: source file {source} does not exist")
-    for source in bundle.values():
-        if not Path(source).is_dir():
-            raise BuildError(f"cannot build {script.stem}.fmu: source {source} does not exist")
-    if bundle and not package:
-        raise BuildError(f"cannot build {script.stem}.fmu: a bundle needs a package name")
-    digest = source_digest(script, variables=variables, package=package, bundle=bundle,
-                           documentation=documentation, default_experiment=default_experiment,
-                           options=options)
+    source.check()
+    script = Path(source.script)
+    package = source.package
+    digest = source.digest()
     builder = _pythonfmu_builder()
     out_dir = Path(out_dir)
     work = _safe_temp_dir()
@@ -209,22 +207,22 @@ def build_pythonfmu(
             target.mkdir()
             (target / "__init__.py").write_text(
                 f'"""The papwc code bundled into {script.stem}.fmu (model layer, glue)."""\n')
-            for name, folder in sorted(bundle.items()):
+            for name, folder in sorted(source.bundle.items()):
                 shutil.copytree(folder, target / name, ignore=_IGNORE)
             project_files.append(target)
         doc_dir = None
-        if documentation:
+        if source.documentation:
             doc_dir = work / "doc"
             doc_dir.mkdir()
-            for source in documentation:
-                shutil.copy2(source, doc_dir / source.name)
+            for doc in source.documentation:
+                shutil.copy2(doc, doc_dir / Path(doc).name)
         try:
             built = builder.build_FMU(
                 src / script.name,
                 dest=work / "fmu",
                 project_files=project_files,
                 documentation_folder=doc_dir,
-                **options,
+                **source.options,
             )
         except Exception as exc:  # pythonfmu raises what the model script raises
             raise BuildError(
@@ -232,8 +230,8 @@ def build_pythonfmu(
             ) from exc
         built = Path(built)
         rewrite_fmu(built, lambda root: complete_model_description(
-            root, variables, guid=guid(digest), default_experiment=default_experiment,
-            where=built.name))
+            root, source.variables, guid=guid(digest),
+            default_experiment=source.default_experiment, where=built.name))
         problems = validate_fmu(str(built))
         if problems:
             raise BuildError(
