@@ -4,10 +4,11 @@ from __future__ import annotations
 
 import math
 import os
+from collections.abc import Callable
 from pathlib import Path
 
 from papwc.errors import FmuError
-from papwc.master import FmuSlave, PhysicsSlave, RunResult, run_controller, summarize
+from papwc.master import FmuSlave, PhysicsSlave, RunResult, Slave, run_controller, summarize
 from papwc.output import write_rows
 from papwc.scenario import Scenario
 
@@ -33,7 +34,7 @@ def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> P
 
 
 def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
-               unzip_dir: str | os.PathLike | None = None):
+               unzip_dir: str | os.PathLike | None = None) -> Slave:
     """A plant with the scenario's parameters: ``"fmu"`` (an FMU file) or ``"physics"``.
 
     ``unzip_dir`` is an extracted copy of the FMU to use (a battery worker
@@ -45,7 +46,8 @@ def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | 
 
 
 def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
-                 progress=None, unzip_dir: str | os.PathLike | None = None) -> list[RunResult]:
+                 progress: Callable[[RunResult], None] | None = None,
+                 unzip_dir: str | os.PathLike | None = None) -> list[RunResult]:
     """Run every controller of the scenario (each with a fresh plant instance).
 
     ``fmu`` is the plant FMU's path when ``plant`` is ``"fmu"`` (and

@@ -12,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 
 from papwc.analysis import paper, plots  # noqa: E402
 from papwc.errors import ScenarioError  # noqa: E402
-from papwc.master import summarize  # noqa: E402
+from papwc.master import RunResult, summarize  # noqa: E402
 from papwc.model.pulse import b_coulomb, pulse_displacement, pulse_width  # noqa: E402
 from papwc.output import write_rows, write_text  # noqa: E402
 from papwc.resources import scenario_file  # noqa: E402
@@ -66,7 +66,8 @@ def _adaptation_per_pulse(trace, n_pulses: int) -> float:
     return abs(b[k] - b[0]) / done if done else math.nan
 
 
-def simulation_numbers(results, p=paper.TABLE_1) -> list[tuple[str, str, float]]:
+def simulation_numbers(results: list[RunResult], p: dict[str, float] = paper.TABLE_1
+                       ) -> list[tuple[str, str, float]]:
     """The paper's statements about its simulations beside the values measured here."""
     m, f_c, c, f_s, f_p, T = (p[k] for k in ("m", "f_c", "c", "f_s", "f_p", "T"))
     b = b_coulomb(f_p, m, f_c)

@@ -28,6 +28,7 @@ def default_workers() -> int:
 
 
 def mp_context():
+    """The multiprocessing context of the workers: forkserver where there is one, else spawn."""
     import multiprocessing
 
     methods = multiprocessing.get_all_start_methods()

@@ -109,5 +109,6 @@ class Journal:
         self.records[(record["battery"], record["run_id"])] = record
 
     def close(self) -> None:
+        """Close the file and release the lock."""
         self._file.close()
         self._lock.close()

@@ -55,6 +55,7 @@ class RunSpec:
 
 
 def controller_tables(data: dict) -> list[dict]:
+    """The ``[[controller]]`` tables of a scenario mapping, as a list."""
     tables = data.get("controller", [])
     return [tables] if isinstance(tables, dict) else list(tables)
 
@@ -67,7 +68,7 @@ def _default(head: str, name: str):
     return getattr(ControllerSettings(), ControllerSettings.KEY_ALIASES.get(name, name))
 
 
-def get_field(data: dict, path: str, table: int | None = None):
+def get_field(data: dict, path: str, table: int | None = None) -> object:
     """Value of ``path`` in a scenario mapping (its default if absent).
 
     ``table`` (0-based) picks the ``[[controller]]`` table of a ``controller.F``

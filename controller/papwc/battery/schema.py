@@ -116,7 +116,8 @@ def load_battery(path: str | os.PathLike) -> Battery:
     return parse_battery(read_toml(path, "battery"), str(path))
 
 
-def is_number(value) -> bool:
+def is_number(value: object) -> bool:
+    """Whether ``value`` is an int or float (not a bool)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 

@@ -52,7 +52,8 @@ def _extract(fmu_path: str) -> str:
     return unzip_dir
 
 
-def cached_plant(digest: str, fmu_path: str | None = None, fmu_bytes: bytes | None = None):
+def cached_plant(digest: str, fmu_path: str | None = None,
+                 fmu_bytes: bytes | None = None) -> tuple[str, str]:
     """(fmu path, extracted folder) of the FMU with SHA-256 ``digest``, extracted once."""
     with _FMU_LOCK:
         if digest not in _FMU_CACHE:
@@ -163,6 +164,7 @@ def init_local_worker(fmu_path: str, owner: int) -> None:
 
 
 def run_in_local_worker(task: dict) -> dict:
+    """Run one task in a local worker process (the FMU extracted by its initializer)."""
     return execute_run(task, _LOCAL["fmu_path"], _LOCAL["unzip_dir"])
 
 

@@ -21,7 +21,8 @@ def plant_forces(n: int) -> list[float]:
     return [cycle[k % len(cycle)] for k in range(n)]
 
 
-def fmpy_loop(fmu_path: Path, unzip_root: Path, input_name: str, output_name: str):
+def fmpy_loop(fmu_path: Path, unzip_root: Path, input_name: str, output_name: str
+              ) -> tuple[Callable[[list[float]], float], Callable[[], None]]:
     """Instantiate an FMU with fmpy; return (loop(forces) -> s per call, close())."""
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from typing import Any
 
 from pythonfmu import (
@@ -107,7 +108,7 @@ class CheckedSlave(Fmi2Slave):
             kwargs["getter"] = getter
         return _KINDS[var.type](var.name, **kwargs)
 
-    def output_getter(self, var: Variable):
+    def output_getter(self, var: Variable) -> Callable[[], Any] | None:
         """A getter for ``var`` other than its attribute (override), or None."""
         return None
 

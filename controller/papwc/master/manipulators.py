@@ -63,13 +63,16 @@ class MeasurementNoise:
         self._rng = random.Random(0)
 
     def setup(self, execution: Execution) -> None:
+        """Watch the measured output."""
         (self._index,) = self.slave.watch((self.variable,))
 
     def initialized(self, t: float) -> None:
+        """Seed the noise of this iteration; add it to the initial value."""
         self._rng = random.Random(self.seed * 1_000_003 + self.iteration)
         self._add()
 
     def slave_stepped(self, slave: Slave) -> None:
+        """Add noise to the fresh value after the measured slave's step."""
         if slave is self.slave:
             self._add()
 

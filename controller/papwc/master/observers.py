@@ -91,6 +91,7 @@ class TraceObserver:
         self._delayed = False
 
     def setup(self, execution: Execution) -> None:
+        """Watch the plant's state and the controller's outputs; learn the timing."""
         self._state = self.plant.watch(_STATE)
         (self._u,) = self.controller.watch(("u",))
         self._ctrl = self.controller.watch(_CONTROLLER)
@@ -104,20 +105,24 @@ class TraceObserver:
         self._controller_rows = []
 
     def initialized(self, t: float) -> None:
+        """Start the rows with the plant's initial values at ``t`` (s)."""
         self._t0 = t
         self._plant_rows = [self.plant.values]
         self._controller_rows = []
         self._controller_start = self.controller.values
 
     def step_complete(self, k: int, t: float) -> None:
+        """Keep the controller's values of sample k and the plant's at t_(k+1)."""
         self._controller_rows.append(self.controller.values)
         self._plant_rows.append(self.plant.values)
 
     def step_failed(self, k: int, t: float) -> None:
+        """End the trace at sample k (its force is the one the plant refused)."""
         self._controller_rows.append(self.controller.values)
         self._fill()
 
     def finished(self, k: int, t: float) -> None:
+        """End the trace with the state at the end (force NaN)."""
         self._controller_rows.append(self.controller.values)
         self._fill(last_u=math.nan)
 

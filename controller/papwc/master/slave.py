@@ -105,6 +105,7 @@ class _WatchedAttributes:
         self._read: Callable[[Any], list[Any]] = lambda obj: []
 
     def watch(self, names: Sequence[str]) -> list[int]:
+        """Read ``names`` into :attr:`values` after each step; return their indexes."""
         known = self.variables()
         indexes = []
         for name in names:
@@ -146,6 +147,7 @@ class _WatchedAttributes:
         raise NotImplementedError
 
     def variables(self) -> Mapping[str, str]:
+        """Causality of every variable."""
         raise NotImplementedError
 
 
@@ -166,6 +168,7 @@ class PhysicsSlave(_WatchedAttributes):
         self._init_watch()
 
     def variables(self) -> Mapping[str, str]:
+        """Causality of every variable."""
         return {v.name: v.causality for v in PLANT_VARIABLES}
 
     def _path(self, name: str) -> str:
@@ -176,6 +179,7 @@ class PhysicsSlave(_WatchedAttributes):
         self.stuck = self.v == 0.0
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
+        """Parameters and input start values, applied at every (re)initialization."""
         unknown = [n for n in values if n not in self.params and n != "u"]
         if unknown:
             raise FmuError(f"{self.name}: the plant has no parameter "
@@ -187,11 +191,13 @@ class PhysicsSlave(_WatchedAttributes):
                 self.params[key] = float(value)
 
     def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        """A function ``set(*values)`` that sets the inputs ``names``, in that order."""
         if list(names) != ["u"]:
             raise FmuError(f"{self.name}: the plant's only input is u, not {list(names)}")
         return self._attribute_setter(names)
 
     def initialize(self, start_time: float = 0.0) -> None:
+        """Initialize with the start values; :attr:`values` then holds the initial values."""
         problems = plant_problems(self.params)
         if problems:
             raise FmuError("exitInitializationMode refused: "
@@ -204,6 +210,7 @@ class PhysicsSlave(_WatchedAttributes):
     restart = initialize
 
     def do_step(self, t: float, h: float) -> None:
+        """Advance from ``t`` over ``h`` (s) and refresh :attr:`values`."""
         u = self.u
         if not (math.isfinite(u) and h > 0.0):
             raise FmuError(f"doStep at t = {t!r} s discarded: u = {u!r} N, step size = {h!r} s")
@@ -213,6 +220,7 @@ class PhysicsSlave(_WatchedAttributes):
         self._refresh()
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
 
@@ -245,6 +253,7 @@ class ControllerSlave(_WatchedAttributes):
         self._init_watch()
 
     def variables(self) -> Mapping[str, str]:
+        """Causality of every variable."""
         out = dict(CONTROLLER_SLAVE_VARIABLES)
         out.update({name: "output" for name in vars(self.estimates)})
         return out
@@ -257,6 +266,7 @@ class ControllerSlave(_WatchedAttributes):
         return f"estimates.{name}"
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
+        """Parameters and input start values, applied at every (re)initialization."""
         for key in values:
             if CONTROLLER_SLAVE_VARIABLES.get(key) != "input":
                 raise FmuError(f"{self.name}: {key!r} is not an input of the controller; "
@@ -264,12 +274,14 @@ class ControllerSlave(_WatchedAttributes):
         self._start.update(values)
 
     def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        """A function ``set(*values)`` that sets the inputs ``names``, in that order."""
         for name in names:
             if CONTROLLER_SLAVE_VARIABLES.get(name) != "input":
                 raise FmuError(f"{self.name}: {name!r} is not an input of the controller")
         return self._attribute_setter(names)
 
     def initialize(self, start_time: float = 0.0) -> None:
+        """Initialize with the start values; :attr:`values` then holds the initial values."""
         for key, value in self._start.items():
             setattr(self, key, value)
         self.u = 0.0
@@ -277,10 +289,12 @@ class ControllerSlave(_WatchedAttributes):
         self._refresh()
 
     def restart(self, start_time: float = 0.0) -> None:
+        """A new maneuver from rest, keeping what the controller learned."""
         self.controller.reset()
         self.initialize(start_time)
 
     def do_step(self, t: float, h: float) -> None:
+        """Advance from ``t`` over ``h`` (s) and refresh :attr:`values`."""
         self.u = self.controller.update(t, self.x_meas, self.x_ref)
         if self.controller.revision != self._revision:
             self._refresh_estimates()
@@ -291,6 +305,7 @@ class ControllerSlave(_WatchedAttributes):
         self._revision = self.controller.revision
 
     def close(self) -> None:
+        """Nothing to release."""
         pass
 
 
@@ -321,16 +336,19 @@ class SignalSlave(_WatchedAttributes):
         self._init_watch()
 
     def variables(self) -> Mapping[str, str]:
+        """Causality of every variable."""
         return {key: "output" for key in self.signals}
 
     def _path(self, name: str) -> str:
         return name
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
+        """Parameters and input start values, applied at every (re)initialization."""
         if values:
             raise FmuError(f"{self.name}: a signal has no parameters or inputs")
 
     def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        """A function ``set(*values)`` that sets the inputs ``names``, in that order."""
         raise FmuError(f"{self.name}: a signal has no inputs")
 
     def _show(self, k: int) -> None:
@@ -339,14 +357,17 @@ class SignalSlave(_WatchedAttributes):
         self._refresh()
 
     def initialize(self, start_time: float = 0.0) -> None:
+        """Initialize with the start values; :attr:`values` then holds the initial values."""
         self._k = 0
         self._show(0)
 
     restart = initialize
 
     def do_step(self, t: float, h: float) -> None:
+        """Advance from ``t`` over ``h`` (s) and refresh :attr:`values`."""
         self._show(self._k)
         self._k += 1
 
     def close(self) -> None:
+        """Nothing to release."""
         pass

@@ -81,6 +81,7 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
 
 def _below_f_p_max(name: str, strict: bool):
     def check(values: Mapping[str, Any]) -> tuple[str, str] | None:
+        """(name, message) if the setting exceeds f_p_max."""
         value, f_p_max = values[name], values["f_p_max"]
         if value is None or (value < f_p_max if strict else value <= f_p_max):
             return None
