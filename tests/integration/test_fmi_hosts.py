@@ -1,7 +1,8 @@
-"""ecos (pip ``ecospy``), a C++ co-simulation engine, as a host of the project's FMUs: its
-Python library and its command line run FrictionPlant.fmu through a force pulse with
-non-default parameters, and ClosedLoop.ssp with its one parameter set, and give fmpy's and
-the master's trajectories to 1e-12 m.
+"""The FMUs in other FMI hosts: libcosim, the project's master and ecos (pip ``ecospy``, a
+C++ co-simulation engine: its Python library and its command line) run FrictionPlant.fmu
+through a force pulse with non-default parameters, and ClosedLoop.ssp with its one parameter
+set, and give fmpy's and the master's trajectories to 1e-12 m. Each test prints the figure it
+measured (``pytest -s``: lines starting ``host matrix:``).
 
 ecos needs Debian's ``libtbb12``; its command line is a non-Python host, so it runs with
 ``LD_PRELOAD`` set to this interpreter's libpython (``papwc hostenv``). Outside CI a machine
@@ -35,6 +36,15 @@ PLANT = {"m": 90.0, "f_c": 60.0, "f_s": 85.0, "c": 350.0, "x0": 0.002, "v0": 0.0
 #: ecos's CSV writes reals with 6 decimals; a probe FMU (PapwcTrivial: y = u) fed through a
 #: connection with this factor carries x with all its digits.
 SCALE = 1e12
+
+
+def report(host: str, case: str, error: float) -> None:
+    """Print a measured figure of the host matrix (shown with ``pytest -s``)."""
+    print(f"\nhost matrix: {host} | {case} | {error!r} m")
+
+
+def max_error(a: list[float], b: list[float]) -> float:
+    return max(abs(p - q) for p, q in zip(a, b, strict=False))
 
 
 def _ecos_missing(reason: str):
@@ -198,6 +208,7 @@ def test_ecos_library_runs_the_plant_like_fmpy(ecospy, friction_plant_fmu) -> No
     sim.terminate()
     reference = fmpy_pulse_x(friction_plant_fmu)
     assert len(xs) == len(reference) == n + 1 and xs[0] == PLANT["x0"]
+    report("ecos 0.7.2 library (ecospy)", "plant pulse, max |x - x_fmpy|", max_error(xs, reference))
     assert max(abs(a - b) for a, b in zip(xs, reference, strict=True)) <= TOL_X
     assert xs[-1] > PLANT["x0"] + 1e-3  # the pulse moved the mass
 
@@ -223,8 +234,60 @@ def test_ecos_command_line_runs_the_plant_like_fmpy(ecos_cli, friction_plant_fmu
     xs = [float(r["probe::y[REAL]"]) / SCALE for r in rows[1:]]
     reference = fmpy_pulse_x(friction_plant_fmu)
     assert len(xs) >= round(STOP / STEP) - 1
+    report("ecos 0.7.2 command line", "plant pulse, max |x - x_fmpy|", max_error(xs, reference))
     assert max(abs(a - b) for a, b in zip(xs, reference, strict=False)) <= TOL_X
     assert xs[-1] > PLANT["x0"] + 1e-3
+
+
+def test_libcosim_runs_the_plant_like_fmpy(friction_plant_fmu) -> None:
+    pytest.importorskip("libcosimpy")
+    from libcosimpy.CosimExecution import CosimExecution
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+    from libcosimpy.CosimManipulator import CosimManipulator
+    from libcosimpy.CosimObserver import CosimObserver
+    from libcosimpy.CosimSlave import CosimLocalSlave
+
+    log_output_level(CosimLogLevel.WARNING)
+    execution = CosimExecution.from_step_size(round(STEP * 1e9))
+    plant = execution.add_local_slave(CosimLocalSlave(str(friction_plant_fmu), "plant"))
+    vr = {v.name.decode(): v.reference for v in execution.slave_variables(plant)}
+    for name, value in PLANT.items():
+        assert execution.real_initial_value(plant, vr[name], value)
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    manipulator = CosimManipulator.create_override()
+    execution.add_manipulator(manipulator)
+    n = round(STOP / STEP)
+    xs = []
+    for k in range(n):
+        manipulator.slave_real_values(plant, [vr["u"]],
+                                      [PULSE_U if k * STEP < PULSE_END - 1e-9 else 0.0])
+        assert execution.step()
+        if k == 0:
+            xs.append(PLANT["x0"])
+        xs.append(observer.last_real_values(plant, [vr["x"]])[0])
+    reference = fmpy_pulse_x(friction_plant_fmu)
+    assert len(xs) == len(reference)
+    report("libcosim (libcosimpy)", "plant pulse, max |x - x_fmpy|", max_error(xs, reference))
+    assert max_error(xs, reference) <= TOL_X and xs[-1] > PLANT["x0"] + 1e-3
+
+
+def test_the_master_runs_the_plant_like_fmpy(friction_plant_fmu) -> None:
+    from papwc.master import FmuSlave
+
+    with FmuSlave(friction_plant_fmu, "plant") as plant:
+        plant.set_start_values(PLANT)
+        (ix,) = plant.watch(["x"])
+        set_u = plant.input_setter(["u"])
+        plant.initialize(0.0)
+        xs = [plant.values[ix]]
+        for k in range(round(STOP / STEP)):
+            set_u(PULSE_U if k * STEP < PULSE_END - 1e-9 else 0.0)
+            plant.do_step(k * STEP, STEP)
+            xs.append(plant.values[ix])
+    reference = fmpy_pulse_x(friction_plant_fmu)
+    report("papwc master (FmuSlave)", "plant pulse, max |x - x_fmpy|", max_error(xs, reference))
+    assert len(xs) == len(reference) and max_error(xs, reference) <= TOL_X
 
 
 # --- ClosedLoop.ssp ----------------------------------------------------------------------------
@@ -244,6 +307,8 @@ def test_ecos_library_runs_the_closed_loop_like_the_master(ecospy, closed_loop,
     pulses = sim.get_integer("controller::pulses")
     kind = sim.get_string("controller::kind")
     sim.terminate()
+    report("ecos 0.7.2 library (ecospy)", "ClosedLoop.ssp, max |x - x_master|",
+           max_error(xs, master_loop["x"]))
     assert max(abs(a - b) for a, b in zip(xs, master_loop["x"], strict=True)) <= TOL_X
     assert pulses == master_loop["pulses"][-1] > 3 and kind == "papwc"
 
@@ -260,5 +325,7 @@ def test_ecos_command_line_runs_the_closed_loop_like_the_master(
     rows = read_csv(path)
     xs = [float(r["probe::y[REAL]"]) / SCALE for r in rows[1:]]
     assert len(xs) >= len(master_loop["x"]) - 2
+    report("ecos 0.7.2 command line", "ClosedLoop.ssp, max |x - x_master|",
+           max_error(xs, master_loop["x"]))
     assert max(abs(a - b) for a, b in zip(xs, master_loop["x"], strict=False)) <= TOL_X
     assert int(rows[-1]["controller::pulses[INT]"]) == master_loop["pulses"][-1]
