@@ -31,7 +31,7 @@ def ssp(friction_plant_fmu: Path, pulse_controller_fmu: Path, tmp_path_factory) 
 @pytest.fixture(autouse=True)
 def _fmu_stderr_default(monkeypatch) -> None:
     """``papwc cosim`` sets PAPWC_FMU_STDERR=0 in its process; undo it after each test."""
-    monkeypatch.delenv("PAPWC_FMU_STDERR", raising=False)
+    monkeypatch.setenv("PAPWC_FMU_STDERR", "1")
 
 
 def rewrite(ssp: Path, target: Path, edits: list[tuple[str, str]],

@@ -24,6 +24,8 @@ FMPY = [sys.executable, "-m", "fmpy.cli"]
 
 
 def fmpy_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    if env is None:
+        env = {k: v for k, v in os.environ.items() if k != "PAPWC_FMU_STDERR"}
     return subprocess.run([*FMPY, *args], capture_output=True, text=True, timeout=300,
                           check=False, env=env)
 
