@@ -131,9 +131,9 @@ def test_ssd_is_valid_ssp_and_binds_the_scenario(closed_loop_ssp: Path, paper) -
         bound = {p.name: p.value for p in parameter_set.parameters}
         assert bound == {k: str(v) if isinstance(v, (int, str)) else repr(v)
                          for k, v in expected[name].items()}  # fmt: skip
-    assert expected["controller"]["kind"] == "papwc"
+    assert expected["controller"]["kind_code"] == 2  # "papwc"
     assert expected["controller"]["t_p_max"] == 0.03
-    assert expected["controller"]["x_ref"] == 0.01 and expected["controller"]["T"] == 0.01
+    assert expected["controller"]["x_ref_offset"] == 0.01 and expected["controller"]["T"] == 0.01
     assert expected["controller"]["k_p"] == -1.0  # None: the default gain
     with zipfile.ZipFile(closed_loop_ssp) as archive:
         ssd_text = archive.read("SystemStructure.ssd").decode()
@@ -197,7 +197,7 @@ def test_libcosim_controller_first_sees_the_plant_initial_output(
     controller = execution.add_local_slave(CosimLocalSlave(str(pulse_controller_fmu), "controller"))
     values = closed_loop_parameters(paper, PAPWC_BOUNDED)
     values["plant"]["x0"] = x0
-    values["controller"]["x_ref"] = x_ref
+    values["controller"]["x_ref_offset"] = x_ref
 
     def refs(index: int) -> dict[str, int]:
         return {v.name.decode(): v.reference for v in execution.slave_variables(index)}

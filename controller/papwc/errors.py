@@ -19,3 +19,7 @@ class BuildError(PapwcError, RuntimeError):
 
 class BatteryError(PapwcError):
     """A battery cannot run: its output folder, journal, FMU or cluster is not usable."""
+
+
+class SspError(PapwcError, ValueError):
+    """An SSP archive cannot be run; the message names the archive and the SSD element."""

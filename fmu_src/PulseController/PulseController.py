@@ -22,10 +22,9 @@ from papwc_pulse_controller.controllers.settings import ControllerSettings
 from papwc_pulse_controller.fmi.glue import CheckedSlave
 from papwc_pulse_controller.model.settings import (
     CONTROLLER_CONSTRAINTS,
-    CONTROLLER_INPUTS,
-    CONTROLLER_OUTPUTS,
     CONTROLLER_SETTINGS,
-    SAMPLE_PERIOD,
+    PULSE_CONTROLLER_VARIABLES,
+    kind_from_code,
 )
 from pythonfmu import DefaultExperiment
 
@@ -40,7 +39,9 @@ class PulseController(CheckedSlave):
 
     Parameters (the settings of a scenario's ``[[controller]]`` table and the
     sample period ``T``) are read when initialization ends; ``x_meas`` (m) and
-    ``x_ref`` (m) are the inputs read at the start of each step; ``u`` (N) is the
+    ``x_ref`` (m) are the inputs read at the start of each step (the reference is
+    ``x_ref_offset + x_ref``, so a host that leaves ``x_ref`` unconnected sets the
+    parameter ``x_ref_offset``); ``u`` (N) is the
     force to hold over the next sample, and ``b_hat`` (m/s2), ``f_c_hat`` (N),
     ``pulses`` and ``mode`` let the controller be observed.
     """
@@ -54,15 +55,22 @@ class PulseController(CheckedSlave):
         "position and the reference and sets the force to hold over the next sample"
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=1.0, step_size=0.01)
-    VARIABLES = CONTROLLER_SETTINGS + (SAMPLE_PERIOD,) + CONTROLLER_INPUTS + CONTROLLER_OUTPUTS
+    VARIABLES = PULSE_CONTROLLER_VARIABLES
     CONSTRAINTS = CONTROLLER_CONSTRAINTS
-    STATE = ("_controller", "_maneuver_seen")
+    STATE = ("_controller", "_maneuver_seen", "_kind_set")
 
     def __init__(self, **kwargs: Any) -> None:
         #: The controller, created when initialization ends with valid parameters.
         self._controller = None
         self._maneuver_seen = 0
+        #: Whether the String parameter kind was set (kind_code must then agree with it).
+        self._kind_set = False
         super().__init__(**kwargs)
+
+    def parameter_set(self, name: str) -> None:
+        """Remember that ``kind`` was set: a kind_code naming another kind is refused."""
+        if name == "kind":
+            self._kind_set = True
 
     # -- variables -------------------------------------------------------------------------
     def output_getter(self, var):
@@ -91,9 +99,15 @@ class PulseController(CheckedSlave):
             self._maneuver_seen = value
             self.u = 0.0
 
+    def _kind(self) -> tuple[str, str | None]:
+        """The kind that ``kind`` and ``kind_code`` select, and a conflict if any."""
+        return kind_from_code(self.kind, self.kind_code, self._kind_set)
+
     def _settings(self) -> ControllerSettings:
-        return ControllerSettings.from_mapping(
-            {name: value for name, value in self.parameter_values().items() if name != "T"})
+        values = {name: value for name, value in self.parameter_values().items()
+                  if name not in ("T", "kind_code", "x_ref_offset")}
+        values["kind"] = self._kind()[0]
+        return ControllerSettings.from_mapping(values)
 
     def _estimate(self, name: str) -> float:
         """Estimate ``name``; before the controller exists, of the current parameters."""
@@ -111,13 +125,17 @@ class PulseController(CheckedSlave):
     def check(self) -> list[str]:
         """The settings' checks, and the kind among the registered controllers."""
         found = []
-        if self.kind not in CONTROLLER_KINDS:
-            found.append(f"parameter kind = {self.kind!r}: must be one of "
+        kind, conflict = self._kind()
+        if conflict is not None:
+            found.append(conflict)
+        elif kind not in CONTROLLER_KINDS:
+            found.append(f"parameter kind = {kind!r}: must be one of "
                          + ", ".join(repr(k) for k in sorted(CONTROLLER_KINDS)))
         return found + super().check()
 
     def start(self) -> None:
-        """Create the controller from the parameters."""
+        """Create the controller from the parameters; ``kind`` then names the kind in use."""
+        self.kind = self._kind()[0]
         self._controller = make_controller(self._settings(), self.T)
         self._maneuver_seen = self.maneuver
         self.u = 0.0
@@ -134,6 +152,12 @@ class PulseController(CheckedSlave):
             return f"input x_meas = {x_meas!r} m is not finite"
         if not _isfinite(x_ref):
             return f"input x_ref = {x_ref!r} m is not finite"
+        offset = self.x_ref_offset
+        if offset:
+            x_ref = offset + x_ref
+            if not _isfinite(x_ref):
+                return (f"the reference x_ref_offset + x_ref = {offset!r} + {self.x_ref!r} m is "
+                        "not finite")
         self.u = self._controller.update(current_time, x_meas, x_ref)
         return None
 

@@ -23,12 +23,21 @@ rest, the same way in every FMU:
 
 pythonfmu 0.7.0 returns fmi2OK for a refused ``setReal`` or ``setFMUstate``
 (its only other outcome is fmi2Fatal); the refusal is in the log.
+
+pythonfmu 0.7.0 also drops every log message unless the host turned debug
+logging on, and does not tell the model whether it did. So that a refusal is
+never silent (``fmpy simulate`` ends a run at a Discard with exit status 0), the
+refused initialization and the first refused step of an instance are also
+written to the process's stderr, one line each, unless the environment sets
+``PAPWC_FMU_STDERR=0`` (a host that reads the log itself, as ``papwc cosim``).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import os
+import sys
 from collections.abc import Callable
 from typing import Any
 
@@ -82,6 +91,8 @@ class CheckedSlave(Fmi2Slave):
         self._terminated = False
         #: Messages for the parameters refused when initialization ended.
         self._problems: list[str] = []
+        #: Whether a refused step has been written to stderr.
+        self._step_told = False
         for var in self.VARIABLES:
             setattr(self, var.name, var.fmi_start)
             self.register_variable(self._declare(var))
@@ -218,6 +229,8 @@ class CheckedSlave(Fmi2Slave):
         for problem in found:
             self.log(f"{self.instance_name}: {problem}; initialization refused, doStep will "
                      "return Discard", Fmi2Status.error)
+        if found:
+            self.tell("; ".join(found) + "; initialization refused, doStep will return Discard")
         self._initialized = True
         self._ready = not found
 
@@ -234,9 +247,27 @@ class CheckedSlave(Fmi2Slave):
             reason = "invalid parameters: " + "; ".join(self._problems)
         else:
             reason = "initialization has not ended (call exitInitializationMode first)"
-        self.log(f"{self.instance_name}: doStep(t = {current_time!r} s, h = {step_size!r} s) "
-                 f"refused: {reason}; the state is left as it was", Fmi2Status.discard)
+        message = (f"doStep(t = {current_time!r} s, h = {step_size!r} s) refused: {reason}; "
+                   "the state is left as it was")
+        self.log(f"{self.instance_name}: {message}", Fmi2Status.discard)
+        if not self._step_told and not self._problems:
+            self._step_told = True
+            self.tell(message + " (later refusals are only logged)")
         return False
+
+    def tell(self, message: str) -> None:
+        """Write ``message`` to stderr as one line naming the model and the instance.
+
+        Skipped when the environment sets ``PAPWC_FMU_STDERR=0``; never raises.
+        """
+        if os.environ.get("PAPWC_FMU_STDERR") == "0":
+            return
+        try:
+            stream = sys.stderr if sys.stderr is not None else sys.__stderr__
+            stream.write(f"{type(self).__name__} {self.instance_name}: {message}\n")
+            stream.flush()
+        except Exception:  # noqa: BLE001 - a closed stream must not kill the instance
+            pass
 
     def terminate(self) -> None:
         """End the simulation: later steps are refused."""

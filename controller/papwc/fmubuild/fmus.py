@@ -24,12 +24,7 @@ from papwc.errors import BuildError
 from papwc.fmubuild.model_description import read_model_description
 from papwc.fmubuild.pythonfmu_build import STATE_OPTIONS, FmuSource, build_pythonfmu, guid
 from papwc.model.plant import PLANT_VARIABLES
-from papwc.model.settings import (
-    CONTROLLER_INPUTS,
-    CONTROLLER_OUTPUTS,
-    CONTROLLER_SETTINGS,
-    SAMPLE_PERIOD,
-)
+from papwc.model.settings import PULSE_CONTROLLER_VARIABLES
 from papwc.model.variables import Variable
 from papwc.resources import checkout_root, fmu_src_dir
 
@@ -105,7 +100,7 @@ FMUS: tuple[FmuRecipe, ...] = (
     FmuRecipe("FrictionPlant", PLANT_VARIABLES, "papwc_friction_plant", ("model", "fmi")),
     FmuRecipe(
         "PulseController",
-        CONTROLLER_SETTINGS + (SAMPLE_PERIOD,) + CONTROLLER_INPUTS + CONTROLLER_OUTPUTS,
+        PULSE_CONTROLLER_VARIABLES,
         "papwc_pulse_controller",
         ("model", "controllers", "fmi"),
         {**STATE_OPTIONS, "canHandleVariableCommunicationStepSize": False},

@@ -6,7 +6,8 @@ every other attribute comes from the model layer's metadata
 the variable tables say:
 
 - ``description``, ``unit`` (with ``<UnitDefinitions>``), ``min``, ``max``,
-  ``nominal`` and an exact ``start`` (``repr``, ``INF``) for every variable;
+  ``nominal`` and an exact ``start`` (``repr``, ``INF``) for every variable (an
+  optional setting's ``min`` is -1, the value that selects its computed default);
 - ``initial="calculated"`` outputs without a start value, listed under
   ``<InitialUnknowns>``;
 - ``<Outputs>`` whose ``dependencies=""`` says an output does not depend on the
@@ -30,7 +31,7 @@ from pathlib import Path
 
 from papwc.errors import BuildError
 from papwc.model.units import UNIT_DEFINITIONS
-from papwc.model.variables import Variable
+from papwc.model.variables import FMU_DEFAULT_SENTINEL, Variable
 
 __all__ = [
     "MODEL_DESCRIPTION",
@@ -196,9 +197,12 @@ def complete_model_description(
             typed.set("unit", var.unit)
             units.add(var.unit)
         if var.type in ("Real", "Integer") and var.causality == "parameter":
-            if var.min is not None and not var.optional:
-                typed.set("min", xml_number(float(var.min) if var.type == "Real"
-                                            else int(var.min)))
+            low = var.min
+            if var.optional and low is not None:
+                # -1 selects the computed default: the lowest value the FMU accepts.
+                low = min(low, FMU_DEFAULT_SENTINEL)
+            if low is not None:
+                typed.set("min", xml_number(float(low) if var.type == "Real" else int(low)))
             if var.max is not None:
                 typed.set("max", xml_number(float(var.max) if var.type == "Real"
                                             else int(var.max)))

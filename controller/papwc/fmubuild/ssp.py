@@ -1,32 +1,39 @@
 """Build ``ClosedLoop.ssp``: plant and pulse controller as one SSP 1.0 system.
 
-The archive holds ``SystemStructure.ssd`` and the two FMUs in ``resources/``:
+The archive (mode 0644) holds ``SystemStructure.ssd`` and the two FMUs in
+``resources/``:
 
 - component ``plant`` (``resources/FrictionPlant.fmu``) and component
   ``controller`` (``resources/PulseController.fmu``);
 - connections ``plant.x_meas -> controller.x_meas`` (the encoder output: what a
   real controller sees; it equals ``x`` with the ideal encoder,
   ``x_resolution = 0``) and ``controller.u -> plant.u``;
-- inline parameter bindings (``ssd:ParameterValues``) for the plant
-  (``m``, ``f_c``, ``f_s``, ``c``, ``x_resolution``; ``x0 = v0 = 0``) and for the
-  controller (``kind``, every setting of the scenario's ``[[controller]]``
-  table, the sample period ``T`` and the reference ``x_ref``, an input held
-  constant by the binding);
+- inline parameter bindings (``ssd:ParameterValues``), in one parameter set
+  named :data:`PARAMETER_SET` in both components (ecos applies one named set at
+  a time; libcosim applies every binding), of types every SSP reader can set
+  (Real and Integer, no String): for the plant ``m``, ``f_c``, ``f_s``, ``c``,
+  ``x_resolution``, ``x0 = v0 = 0``; for the controller ``kind_code`` (the
+  Integer that names the kind; the String ``kind`` keeps its start value), every
+  setting the scenario's ``[[controller]]`` table gives for that kind, the
+  sample period ``T`` and the reference as the parameter ``x_ref_offset``
+  (an SSP 1.0 binding may set FMI 2.0 variables with ``initial = "exact"`` or
+  ``"approx"``, which inputs are not, so the input ``x_ref`` is left at 0);
 - a ``DefaultExperiment`` from 0 s to the maneuver's duration (``n_steps * T``,
   the samples the Python master runs), with the
   Open Simulation Platform annotation ``osp:FixedStepAlgorithm`` whose
-  ``baseStepSize`` is ``T``, so that libcosim runs the system without being
-  given a step size.
+  ``baseStepSize`` is ``T`` (libcosim), and on the system OMSimulator's
+  ``oms:SimulationInformation`` with an ``oms:FixedStepMaster`` of step ``T``
+  (per OMSimulator's ``schema/oms.xsd``).
 
 A master that steps both components side by side at ``T`` (libcosim's
 fixed-step algorithm) gives the plant over ``[t_k, t_(k+1)]`` the force
 computed from ``x_meas(t_k - T)``: the Python master's ``timing = "delayed"``.
 
-libcosim applies the bindings and the annotation
-(``libcosimpy.CosimExecution.CosimExecution.from_ssp_file``). fmpy's
-``fmpy.ssp.simulation.simulate_ssp`` reads the structure but applies no
-bindings (they can be passed as its ``parameter_set``, names prefixed with the
-component) and cannot set String variables.
+libcosim (``libcosimpy.CosimExecution.CosimExecution.from_ssp_file``), ecos
+(``ecos simulate --parameterSet scenario``) and ``papwc cosim`` apply the
+bindings. fmpy's ``fmpy.ssp.simulation.simulate_ssp`` reads the structure but
+applies no bindings (they can be passed as its ``parameter_set``, names
+prefixed with the component).
 """
 
 from __future__ import annotations
@@ -42,7 +49,7 @@ from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, set
 from papwc.errors import BuildError, PapwcError
 from papwc.fmubuild.model_description import read_model_description
 from papwc.model.plant import PLANT_INPUTS, PLANT_OUTPUTS, SCENARIO_PLANT_FIELDS
-from papwc.model.settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
+from papwc.model.settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, KIND_CODES
 from papwc.model.units import UNIT_DEFINITIONS
 from papwc.model.variables import FMU_DEFAULT_SENTINEL
 from papwc.scenario import Scenario, load_scenario
@@ -50,6 +57,7 @@ from papwc.scenario import Scenario, load_scenario
 __all__ = [
     "CONNECTIONS",
     "CONTROLLER",
+    "PARAMETER_SET",
     "PLANT",
     "build_closed_loop_ssp",
     "closed_loop_parameters",
@@ -61,6 +69,13 @@ __all__ = [
 PLANT = "plant"
 CONTROLLER = "controller"
 
+#: Name of the one parameter set that holds every binding (ecos's ``--parameterSet``).
+PARAMETER_SET = "scenario"
+
+#: Relative tolerance written with OMSimulator's fixed-step master (it reads one; a
+#: fixed-step master of FMUs that do not iterate does not use it).
+_OMS_RELATIVE_TOLERANCE = 1e-4
+
 #: ``(start component, start connector, end component, end connector)``.
 CONNECTIONS: tuple[tuple[str, str, str, str], ...] = (
     (PLANT, "x_meas", CONTROLLER, "x_meas"),
@@ -68,12 +83,15 @@ CONNECTIONS: tuple[tuple[str, str, str, str], ...] = (
 )
 
 #: Connectors declared per component: name -> (kind, type, unit), from the model layer.
+#: The controller's input ``x_ref`` is not declared: it is not connected (the reference
+#: is the bound parameter ``x_ref_offset``), and fmpy's SSP reader would wire an
+#: unconnected input connector to the source of the connector before it.
 _CONNECTORS: dict[str, dict[str, tuple[str, str, str | None]]] = {
     component: {v.name: (v.causality, v.type, v.unit if v.type == "Real" else None)
                 for v in signals}
     for component, signals in (
         (PLANT, PLANT_INPUTS + PLANT_OUTPUTS),
-        (CONTROLLER, CONTROLLER_INPUTS[:2] + CONTROLLER_OUTPUTS),
+        (CONTROLLER, CONTROLLER_INPUTS[:1] + CONTROLLER_OUTPUTS),
     )
 }
 
@@ -82,6 +100,7 @@ _NAMESPACES = {
     "xmlns:ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
     "xmlns:ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
     "xmlns:osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
+    "xmlns:oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
 }
 
 
@@ -136,7 +155,9 @@ def closed_loop_parameters(
         units, for the settings the controller's kind reads. ``None`` settings are
         given as :data:`papwc.model.variables.FMU_DEFAULT_SENTINEL`; an
         infinite ``t_p_max`` is left out (the controller FMU's start value is
-        infinity, and an SSP reader need not parse ``INF``).
+        infinity, and an SSP reader need not parse ``INF``). The kind is given
+        as the Integer ``kind_code`` (fmpy and OMSimulator cannot set Strings),
+        the reference as the parameter ``x_ref_offset``.
     """
     if not 0 <= controller_index < len(scenario.controllers):
         raise BuildError(
@@ -156,14 +177,16 @@ def closed_loop_parameters(
         value = settings.get(name)
         if value is None:
             value = FMU_DEFAULT_SENTINEL
-        if var.type == "Integer":
+        if name == "kind":
+            controller["kind_code"] = KIND_CODES.index(value) + 1
+        elif var.type == "Integer":
             controller[name] = int(value)
         elif var.type == "String":
             controller[name] = str(value)
         elif not (var.inf_ok and math.isinf(value)):
             controller[name] = float(value)
     controller["T"] = float(scenario.maneuver.T)
-    controller["x_ref"] = float(scenario.maneuver.x_ref)
+    controller["x_ref_offset"] = float(scenario.maneuver.x_ref)
     return {PLANT: plant, CONTROLLER: controller}
 
 
@@ -226,7 +249,7 @@ def _ssd(
         binding = ET.SubElement(bindings, "ssd:ParameterBinding")
         values = ET.SubElement(binding, "ssd:ParameterValues")
         parameter_set = ET.SubElement(
-            values, "ssv:ParameterSet", version="1.0", name=f"{component}_parameters"
+            values, "ssv:ParameterSet", version="1.0", name=PARAMETER_SET
         )
         params = ET.SubElement(parameter_set, "ssv:Parameters")
         for name, value in parameters[component].items():
@@ -247,6 +270,13 @@ def _ssd(
             endElement=end_element,
             endConnector=end_connector,
         )
+    step = _number(scenario.maneuver.T)
+    system_annotations = ET.SubElement(system, "ssd:Annotations")
+    oms = ET.SubElement(system_annotations, "ssc:Annotation", type="org.openmodelica")
+    oms_annotations = ET.SubElement(oms, "oms:Annotations")
+    information = ET.SubElement(oms_annotations, "oms:SimulationInformation")
+    ET.SubElement(information, "oms:FixedStepMaster", description="oms-ma", stepSize=step,
+                  relativeTolerance=_number(_OMS_RELATIVE_TOLERANCE))
     units = ET.SubElement(root, "ssd:Units")
     for unit in sorted(units_used):
         element = ET.SubElement(units, "ssc:Unit", name=unit)
@@ -337,6 +367,7 @@ def build_closed_loop_ssp(
             archive.writestr("SystemStructure.ssd", ssd_bytes)
             for component, path in fmus.items():
                 archive.write(path, sources[component])
+        os.chmod(tmp_name, 0o644)
         os.replace(tmp_name, target)
     except OSError as exc:
         Path(tmp_name).unlink(missing_ok=True)

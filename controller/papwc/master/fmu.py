@@ -10,6 +10,7 @@ or another tool's.
 
 from __future__ import annotations
 
+import itertools
 import os
 import shutil
 import tempfile
@@ -39,6 +40,20 @@ _STATUS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 _LOG_KEPT = 200
 
 _C_TYPES = {"Real": c_double, "Integer": c_int, "Enumeration": c_int, "Boolean": c_int}
+
+
+#: The logger of each instance by its componentEnvironment key.
+_LOGGERS: dict[int, Callable[[int, Any, Any], None]] = {}
+_LOG_KEYS = itertools.count(1)
+#: The one fmi2CallbackLogger given to every FMU (made when the first FmuSlave loads).
+_DISPATCH: Any = None
+
+
+def _dispatch(environment, instance_name, status, category, message) -> None:
+    """Hand a log message to the logger of the instance it comes from."""
+    logger = _LOGGERS.get(environment or 0)
+    if logger is not None:
+        logger(status, category, message)
 
 
 def _text(value: Any) -> str:
@@ -139,12 +154,23 @@ class FmuSlave:
         )
         from fmpy.logging import addLoggerProxy
 
-        def logger(component, instance_name, status, category, message) -> None:
-            label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
-            self.log.append(f"[{label}] {_text(category)}: {_text(message)}")
+        log = self.log
 
+        def logger(status, category, message) -> None:
+            label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
+            log.append(f"[{label}] {_text(category)}: {_text(message)}")
+
+        # fmpy's native logger proxy keeps one Python logger per process (the last one
+        # given), so every instance's messages go to one dispatcher, which hands each to
+        # its instance by the componentEnvironment the instance was given.
+        global _DISPATCH
+        if _DISPATCH is None:
+            _DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)
+        self._log_key = next(_LOG_KEYS)
+        _LOGGERS[self._log_key] = logger
         callbacks = fmi2CallbackFunctions()
-        callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        callbacks.logger = _DISPATCH
+        callbacks.componentEnvironment = self._log_key
         callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         addLoggerProxy(byref(callbacks))
@@ -403,6 +429,7 @@ class FmuSlave:
                 fmu.freeInstance()
             except Exception:  # noqa: BLE001
                 pass
+        _LOGGERS.pop(getattr(self, "_log_key", 0), None)
         if self._owns_dir:
             shutil.rmtree(self.unzip_dir, ignore_errors=True)
             self._owns_dir = False

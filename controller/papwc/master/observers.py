@@ -17,7 +17,7 @@ from papwc.master.trace import Trace
 if TYPE_CHECKING:
     from papwc.master.execution import Execution
 
-__all__ = ["Observer", "TraceObserver"]
+__all__ = ["Observer", "TraceObserver", "VariableObserver"]
 
 
 class Observer(Protocol):
@@ -148,3 +148,47 @@ class TraceObserver:
         cols["u"] = u
         for name, i in zip(_CONTROLLER, self._ctrl, strict=True):
             cols[name] = [r[i] for r in ctrl_rows]
+
+
+class VariableObserver:
+    """Records chosen variables of any slaves at every communication point.
+
+    ``rows`` holds ``[t, value, ...]`` per communication point: the values
+    after (re)initialization, then after every step; a failed step adds no row,
+    so the rows before it stay. The list object is kept for the observer's
+    life (a reader may hold it while the run goes on).
+
+    Parameters
+    ----------
+    variables : sequence of (Slave, str)
+        The slave and the name of each variable recorded, in column order.
+    """
+
+    def __init__(self, variables: list[tuple[Slave, str]]) -> None:
+        self.variables = list(variables)
+        self.rows: list[list] = []
+        self._reads: list[tuple[Slave, list[int]]] = []
+
+    def setup(self, execution: Execution) -> None:
+        slaves: dict[int, tuple[Slave, list[str]]] = {}
+        for slave, name in self.variables:
+            slaves.setdefault(id(slave), (slave, []))[1].append(name)
+        indexes = {id(slave): dict(zip(names, slave.watch(names), strict=True))
+                   for slave, names in slaves.values()}
+        self._columns = [(slave, indexes[id(slave)][name]) for slave, name in self.variables]
+
+    def _record(self, t: float) -> None:
+        self.rows.append([t, *[slave.values[i] for slave, i in self._columns]])
+
+    def initialized(self, t: float) -> None:
+        self.rows.clear()
+        self._record(t)
+
+    def step_complete(self, k: int, t: float) -> None:
+        self._record(t)
+
+    def step_failed(self, k: int, t: float) -> None:
+        """Nothing to add: the rows before the failed step are kept."""
+
+    def finished(self, k: int, t: float) -> None:
+        """Nothing to add: every communication point is recorded."""

@@ -62,15 +62,15 @@ PLANT_INPUTS: tuple[Variable, ...] = (
 #: The outputs, at the end of the last communication step.
 PLANT_OUTPUTS: tuple[Variable, ...] = (
     Variable("x", "Position at the end of the last step", "m", 0.0, causality="output",
-             initial="exact"),
+             initial="calculated"),
     Variable("v", "Velocity at the end of the last step", "m/s", 0.0, causality="output",
-             initial="exact"),
+             initial="calculated"),
     Variable(
         "x_meas", "Position read by the encoder: x rounded to x_resolution", "m", 0.0,
-        causality="output", initial="exact",
+        causality="output", initial="calculated",
     ),
     Variable("stuck", "Mass at rest (v exactly 0)", "", True, causality="output",
-             type="Boolean", initial="exact"),
+             type="Boolean", initial="calculated"),
 )
 
 #: Every variable of FrictionPlant.fmu, in the order of its value references.

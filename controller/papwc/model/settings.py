@@ -21,7 +21,12 @@ __all__ = [
     "CONTROLLER_OUTPUTS",
     "CONTROLLER_SETTINGS",
     "FMU_DEFAULT_SENTINEL",
+    "KIND_CODE",
+    "KIND_CODES",
+    "PULSE_CONTROLLER_VARIABLES",
+    "REFERENCE_OFFSET",
     "SAMPLE_PERIOD",
+    "kind_from_code",
     "settings_problems",
 ]
 
@@ -111,6 +116,55 @@ CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
 SAMPLE_PERIOD = Variable("T", "Sample period: every communication step must be T", "s", 0.01,
                          min=0.0, min_open=True)
 
+#: A fixed reference as a parameter of PulseController.fmu: the controller's reference is
+#: ``x_ref_offset + x_ref``. An SSP binds it (SSP 1.0 bindings set FMI 2.0 variables with
+#: ``initial = "exact"`` or ``"approx"``: parameters, not inputs) and leaves ``x_ref`` at 0.
+REFERENCE_OFFSET = Variable(
+    "x_ref_offset", "Constant added to the input x_ref: the reference is x_ref_offset + x_ref "
+    "(a fixed target for hosts that leave x_ref unconnected)", "m", 0.0, nominal=0.01,
+)
+
+#: Controller kinds by number: ``KIND_CODES[n - 1]`` is the kind that ``kind_code = n``
+#: selects (the registry of :mod:`papwc.controllers` has exactly these kinds).
+KIND_CODES: tuple[str, ...] = ("pwc", "papwc", "exact")
+
+#: The controller kind as an Integer parameter of PulseController.fmu, for hosts and SSP
+#: readers that cannot set the String ``kind`` (fmpy, OMSimulator). 0 leaves the choice
+#: to ``kind``; a host that sets both must set them alike.
+KIND_CODE = Variable(
+    "kind_code", "Controller kind as a number, for hosts that cannot set Strings: 0 = as the "
+    "String kind says, " + ", ".join(f"{n} = {k}" for n, k in enumerate(KIND_CODES, 1))
+    + "; if kind is also set, both must name the same kind", "", 0, type="Integer", min=0,
+    max=len(KIND_CODES),
+)
+
+
+def kind_from_code(kind: str, kind_code: int, kind_set: bool) -> tuple[str, str | None]:
+    """The controller kind that ``kind`` and ``kind_code`` select, and a conflict if any.
+
+    Parameters
+    ----------
+    kind : str
+        The String parameter ``kind``.
+    kind_code : int
+        The Integer parameter ``kind_code`` (0: ``kind`` decides).
+    kind_set : bool
+        Whether ``kind`` was set (not left at its start value).
+
+    Returns
+    -------
+    (str, str or None)
+        The kind, and ``None`` or the message that refuses the pair.
+    """
+    if kind_code == 0 or not 1 <= kind_code <= len(KIND_CODES):
+        return kind, None
+    named = KIND_CODES[kind_code - 1]
+    if kind_set and kind != named:
+        return kind, (f"parameter kind = {kind!r} and kind_code = {kind_code} ({named!r}) "
+                      "name different controllers: set only one of them, or both alike")
+    return named, None
+
+
 #: Inputs of PulseController.fmu, read at the start of each step.
 CONTROLLER_INPUTS: tuple[Variable, ...] = (
     Variable("x_meas", "Measured position, read at the start of each step", "m", 0.0,
@@ -138,6 +192,13 @@ CONTROLLER_OUTPUTS: tuple[Variable, ...] = (
     Variable("mode", "Controller mode after the last step: 0 coarse, 1 pulse (also before "
              "the first step), 2 wait, 3 settled", "", 1, causality="output",
              type="Integer", initial="exact"),
+)
+
+
+#: Every variable of PulseController.fmu, in the order of its value references.
+PULSE_CONTROLLER_VARIABLES: tuple[Variable, ...] = (
+    CONTROLLER_SETTINGS + (SAMPLE_PERIOD, KIND_CODE, REFERENCE_OFFSET) + CONTROLLER_INPUTS
+    + CONTROLLER_OUTPUTS
 )
 
 

@@ -1,0 +1,86 @@
+"""What a non-Python FMI host needs to load the project's FMUs, for this interpreter.
+
+A pythonfmu 0.7.0 FMU embeds the Python interpreter, but its binary does not
+link libpython: a Python host has the library loaded already; a C or C++ host
+(ecos, fmusim, OMSimulator, the FMI Compliance Checker) must load it first:
+
+- Linux: ``LD_PRELOAD=<libpython3.X.so.1.0>`` of an interpreter 3.8 or newer
+  (without it the host fails with ``undefined symbol: _Py_NoneStruct`` or
+  crashes);
+- Windows: the folder of ``python3.dll`` on ``PATH``;
+- macOS: pythonfmu 0.7.0 ships no macOS binary.
+
+:func:`host_environment` finds the library of the interpreter this code runs
+on, so the line it gives fits the ``papwc`` installation.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+import sysconfig
+from pathlib import Path
+
+from papwc.errors import PapwcError
+
+__all__ = ["host_environment", "libpython"]
+
+
+def libpython() -> Path:
+    """The shared libpython of the running interpreter (Linux).
+
+    Looked for, in order: ``LIBDIR/INSTSONAME`` of the interpreter's build, the
+    multiarch library folders, and the ``ldconfig`` cache.
+
+    Raises
+    ------
+    PapwcError
+        If no ``libpython3.X.so.1.0`` of this interpreter's version is found.
+    """
+    version = f"{sys.version_info.major}.{sys.version_info.minor}"
+    soname = sysconfig.get_config_var("INSTSONAME") or f"libpython{version}.so.1.0"
+    if not soname.endswith(".so.1.0") and ".so" not in soname:
+        soname = f"libpython{version}.so.1.0"  # a static build names its .a here
+    folders = [sysconfig.get_config_var("LIBDIR"), os.path.join(sys.base_prefix, "lib")]
+    multiarch = sysconfig.get_config_var("MULTIARCH")
+    if multiarch:
+        folders += [f"/usr/lib/{multiarch}", f"/lib/{multiarch}"]
+    folders += ["/usr/lib", "/usr/lib64", "/usr/local/lib"]
+    for folder in folders:
+        if folder and (Path(folder) / soname).is_file():
+            return Path(folder) / soname
+    try:
+        listing = subprocess.run(["ldconfig", "-p"], capture_output=True, text=True,
+                                 timeout=10, check=False).stdout
+    except (OSError, subprocess.SubprocessError):
+        listing = ""
+    for line in listing.splitlines():
+        name, _, target = line.strip().partition(" => ")
+        if name.split(" ", 1)[0] == soname and Path(target).is_file():
+            return Path(target)
+    raise PapwcError(
+        f"no {soname} found for Python {version} ({sys.executable}): a non-Python FMI host "
+        f"needs it; install a Python built with --enable-shared, or Debian's "
+        f"libpython{version}"
+    )
+
+
+def host_environment(platform: str | None = None) -> str:
+    """The shell line that lets a non-Python host load the FMUs on this machine.
+
+    Raises
+    ------
+    PapwcError
+        On macOS (no pythonfmu 0.7.0 binary), or if the library is not found.
+    """
+    platform = platform or sys.platform
+    if platform.startswith("linux"):
+        return f"export LD_PRELOAD={libpython()}"
+    if platform.startswith(("win32", "cygwin")):
+        folder = Path(sys.base_prefix)
+        if not (folder / "python3.dll").is_file():
+            raise PapwcError(f"no python3.dll in {folder}")
+        return f'set "PATH={folder};%PATH%"'
+    raise PapwcError(f"platform {platform!r}: pythonfmu 0.7.0 FMUs have binaries for Linux "
+                     "and Windows only")

@@ -1,0 +1,162 @@
+"""``papwc cosim FILE.ssp``: runs any SSP of FMI 2.0 CS FMUs it can; every SSD problem is one
+line naming the SSD element, exit status 2, and nothing written."""
+
+from __future__ import annotations
+
+import csv
+import dataclasses
+import re
+import zipfile
+from pathlib import Path
+
+import pytest
+
+from papwc.cli import main
+from papwc.controllers import make_controller
+from papwc.fmubuild.ssp import build_closed_loop_ssp
+from papwc.master import PhysicsSlave, run_iteration
+from papwc.scenario import load_scenario
+
+PROJECT_DIR = Path(__file__).resolve().parents[2]
+PAPER = PROJECT_DIR / "scenarios" / "paper.toml"
+PAPWC_BOUNDED = 2
+
+
+@pytest.fixture(scope="module")
+def ssp(friction_plant_fmu: Path, pulse_controller_fmu: Path, tmp_path_factory) -> Path:
+    return build_closed_loop_ssp(tmp_path_factory.mktemp("ssp"), PAPER, friction_plant_fmu,
+                                 pulse_controller_fmu)
+
+
+@pytest.fixture(autouse=True)
+def _fmu_stderr_default(monkeypatch) -> None:
+    """``papwc cosim`` sets PAPWC_FMU_STDERR=0 in its process; undo it after each test."""
+    monkeypatch.setenv("PAPWC_FMU_STDERR", "1")
+
+
+def rewrite(ssp: Path, target: Path, edits: list[tuple[str, str]],
+            drop: str | None = None) -> Path:
+    """A copy of ``ssp`` with its SSD edited (regular expressions, each must match) and one
+    member left out."""
+    with zipfile.ZipFile(ssp) as src, zipfile.ZipFile(target, "w") as dst:
+        for name in src.namelist():
+            if name == drop:
+                continue
+            data = src.read(name)
+            if name == "SystemStructure.ssd":
+                text = data.decode()
+                for pattern, new in edits:
+                    text, n = re.subn(pattern, new, text)
+                    assert n, pattern
+                data = text.encode()
+            dst.writestr(name, data)
+    return target
+
+
+def files_under(folder: Path) -> set[Path]:
+    return set(folder.rglob("*"))
+
+
+def refused(capsys, tmp_path: Path, path: Path, *extra: str) -> str:
+    """Run ``papwc cosim`` expecting exit 2, one stderr line and nothing written; the line."""
+    before = files_under(tmp_path)
+    out = tmp_path / "out"
+    assert main(["cosim", str(path), "--out", str(out), *extra]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1, captured.err
+    assert captured.out == ""
+    assert not out.exists() and files_under(tmp_path) == before
+    return lines[0]
+
+
+def test_a_binding_to_a_variable_the_fmu_lacks(ssp, tmp_path, capsys) -> None:
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [('<ssv:Parameter name="m">',
+                                                '<ssv:Parameter name="mass">')])
+    line = refused(capsys, tmp_path, bad)
+    assert line.startswith("papwc cosim: error: ")
+    assert str(bad) in line and "SystemStructure.ssd" in line
+    assert '<ssd:Component name="plant" source="resources/FrictionPlant.fmu"' in line
+    assert '<ssv:Parameter name="mass">' in line and "has no variable 'mass'" in line
+
+
+def test_a_connection_of_mismatched_types(ssp, tmp_path, capsys) -> None:
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [('startConnector="x_meas"',
+                                                'startConnector="stuck"')])
+    line = refused(capsys, tmp_path, bad)
+    assert ('<ssd:Connection startElement="plant" startConnector="stuck" '
+            'endElement="controller" endConnector="x_meas">') in line
+    assert "plant.stuck is a Boolean, controller.x_meas a Real" in line
+
+
+def test_a_missing_fmu(ssp, tmp_path, capsys) -> None:
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [], drop="resources/PulseController.fmu")
+    line = refused(capsys, tmp_path, bad)
+    assert '<ssd:Component name="controller" source="resources/PulseController.fmu"' in line
+    assert "the archive has no resources/PulseController.fmu" in line
+
+
+def test_a_string_binding_that_contradicts_kind_code_is_refused(ssp, tmp_path, capsys) -> None:
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [(
+        '<ssv:Parameter name="kind_code">',
+        '<ssv:Parameter name="kind"><ssv:String value="pwc" /></ssv:Parameter>'
+        '<ssv:Parameter name="kind_code">')])
+    line = refused(capsys, tmp_path, bad)
+    assert "parameter kind = 'pwc' and kind_code = 2 ('papwc') name different controllers" in line
+
+
+def test_invalid_parameters_and_options_are_one_line(ssp, tmp_path, capsys) -> None:
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [(r'(<ssv:Parameter name="m">\s*<ssv:Real) '
+                                                r'value="150.0"', r'\1 value="-1.0"')])
+    line = refused(capsys, tmp_path, bad)
+    assert "m = -1.0 kg: must be > 0 kg" in line
+    assert "has no variable" in refused(capsys, tmp_path, ssp, "--variables", "plant.nope")
+    assert "step = -0.01 s: must be > 0" in refused(capsys, tmp_path, ssp, "--step", "-0.01")
+    no_step = rewrite(ssp, tmp_path / "nostep.ssp", [("osp:FixedStepAlgorithm", "osp:Other"),
+                                                      ("oms:FixedStepMaster", "oms:Other")])
+    assert "give --step" in refused(capsys, tmp_path, no_step)
+    assert "no such SSP file" in refused(capsys, tmp_path, tmp_path / "none.ssp")
+
+
+@pytest.mark.slow
+def test_a_string_binding_selects_the_kind(ssp, tmp_path, capsys) -> None:
+    """Strings are bound too: ``kind = "pwc"`` instead of ``kind_code`` runs the PWC with
+    the table's other settings, as the master does."""
+    pwc = rewrite(ssp, tmp_path / "pwc.ssp", [(
+        r'<ssv:Parameter name="kind_code">\s*<ssv:Integer value="2" />',
+        '<ssv:Parameter name="kind"><ssv:String value="pwc" />')])
+    out = tmp_path / "out"
+    assert main(["cosim", str(pwc), "--out", str(out), "--variables", "plant.x"]) == 0
+    rows = list(csv.reader((out / "pwc.csv").read_text().splitlines()))
+    paper = load_scenario(PAPER)
+    settings = dataclasses.replace(paper.controllers[PAPWC_BOUNDED], kind="pwc")
+    maneuver = dataclasses.replace(paper.maneuver, iterations=1, timing="delayed")
+    plant = PhysicsSlave()
+    plant.set_start_values(paper.plant)
+    trace = run_iteration(plant, make_controller(settings, maneuver.T), maneuver)
+    xs = [float(r[1]) for r in rows[1:]]
+    assert max(abs(a - b) for a, b in zip(xs, trace.columns["x"], strict=True)) <= 1e-12
+
+
+@pytest.mark.slow
+def test_writes_the_chosen_variables_and_a_plot(ssp, tmp_path, capsys) -> None:
+    out = tmp_path / "out"
+    assert main(["cosim", str(ssp), "--out", str(out), "--variables", "plant.x",
+                 "controller.u", "controller.pulses", "plant.stuck"]) == 0
+    assert sorted(p.name for p in out.iterdir()) == ["ClosedLoop.csv", "ClosedLoop.png"]
+    assert "200 steps of 0.01 s, 4 variables" in capsys.readouterr().out
+    rows = list(csv.reader((out / "ClosedLoop.csv").read_text().splitlines()))
+    assert rows[0] == ["time", "plant.x", "controller.u", "controller.pulses", "plant.stuck"]
+    assert len(rows) == 202 and rows[1] == ["0.0", "0.0", "0.0", "0", "True"]
+    assert float(rows[-1][0]) == pytest.approx(2.0) and int(rows[-1][3]) > 3
+    assert (out / "ClosedLoop.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.slow
+def test_a_refused_step_keeps_the_rows_before_it(ssp, tmp_path, capsys) -> None:
+    out = tmp_path / "out"
+    assert main(["cosim", str(ssp), "--out", str(out), "--step", "0.02"]) == 1
+    err = capsys.readouterr().err
+    assert "differs from the sample period T = 0.01 s" in err
+    rows = list(csv.reader((out / "ClosedLoop.csv").read_text().splitlines()))
+    assert len(rows) == 2 and rows[1][0] == "0.0"  # the values after initialization

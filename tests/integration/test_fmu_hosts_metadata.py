@@ -1,0 +1,177 @@
+"""What other hosts read off the FMUs: complete model descriptions (``fmpy validate`` clean,
+ranges, ``initial="calculated"`` outputs with their InitialUnknowns, no feedthrough), the
+outputs' values in initialization mode, the controller kind as an Integer, and refusals that
+reach stderr when the host's logging is off."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+from papwc.fmubuild.model_description import read_model_description as read_md_xml
+from papwc.model.plant import PLANT_OUTPUTS, PLANT_PARAMETERS
+from papwc.model.settings import KIND_CODES, PULSE_CONTROLLER_VARIABLES
+from papwc.model.variables import FMU_DEFAULT_SENTINEL
+
+FMPY = [sys.executable, "-m", "fmpy.cli"]
+
+
+def fmpy_cli(*args: str, env: dict | None = None) -> subprocess.CompletedProcess:
+    if env is None:
+        env = {k: v for k, v in os.environ.items() if k != "PAPWC_FMU_STDERR"}
+    return subprocess.run([*FMPY, *args], capture_output=True, text=True, timeout=300,
+                          check=False, env=env)
+
+
+@pytest.mark.parametrize("name", ["FrictionPlant.fmu", "PulseController.fmu"])
+def test_fmpy_validate_is_clean(fmu_dir: Path, name: str) -> None:
+    done = fmpy_cli("validate", str(fmu_dir / name))
+    assert done.returncode == 0 and "No problems found" in done.stdout, done.stdout + done.stderr
+
+
+@pytest.mark.parametrize("name, table", [("FrictionPlant.fmu", PLANT_PARAMETERS),
+                                         ("PulseController.fmu", PULSE_CONTROLLER_VARIABLES)])
+def test_every_bounded_parameter_declares_its_range(fmu_dir: Path, name: str, table) -> None:
+    root = read_md_xml(fmu_dir / name)
+    declared = {sv.get("name"): next(iter(sv)) for sv in root.iter("ScalarVariable")}
+    checked = 0
+    for var in table:
+        if var.causality != "parameter" or var.type not in ("Real", "Integer"):
+            continue
+        typed = declared[var.name]
+        if var.min is not None:
+            low = min(var.min, FMU_DEFAULT_SENTINEL) if var.optional else var.min
+            assert float(typed.get("min")) == low, var.name
+            checked += 1
+        if var.max is not None:
+            assert float(typed.get("max")) == var.max, var.name
+        if var.nominal is not None:
+            assert float(typed.get("nominal")) == var.nominal, var.name
+    assert checked >= 5
+
+
+def test_plant_outputs_are_calculated_from_the_parameters(friction_plant_fmu: Path) -> None:
+    md = read_model_description(str(friction_plant_fmu))
+    by_name = {v.name: v for v in md.modelVariables}
+    index = {v.name: i + 1 for i, v in enumerate(md.modelVariables)}
+    for var in PLANT_OUTPUTS:
+        assert by_name[var.name].initial == "calculated" and by_name[var.name].start is None
+    assert sorted(index[u.variable.name] for u in md.initialUnknowns) == sorted(
+        index[v.name] for v in PLANT_OUTPUTS)
+    # no direct feedthrough: x, v, x_meas, stuck do not depend on u at the same instant
+    assert all(o.dependencies == [] for o in md.outputs)
+
+
+def test_outputs_in_initialization_mode_follow_the_parameters(friction_plant_fmu: Path,
+                                                             tmp_path: Path) -> None:
+    md = read_model_description(str(friction_plant_fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(friction_plant_fmu), tmp_path),
+                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="plant")
+    fmu.instantiate()
+    try:
+        fmu.setupExperiment(startTime=0.0)
+        fmu.setReal([vr["x0"], vr["v0"], vr["x_resolution"]], [0.00123456, -0.02, 1e-4])
+        fmu.enterInitializationMode()
+        x, v, x_meas = fmu.getReal([vr["x"], vr["v"], vr["x_meas"]])
+        (stuck,) = fmu.getBoolean([vr["stuck"]])
+        assert (x, v) == (0.00123456, -0.02)
+        assert math.isclose(x_meas, 0.0012, abs_tol=1e-15) and not stuck
+        fmu.setReal([vr["v0"]], [0.0])
+        assert fmu.getBoolean([vr["stuck"]]) == [True]
+        fmu.exitInitializationMode()
+        assert fmu.getReal([vr["x"], vr["v"]]) == [0.00123456, 0.0]
+        fmu.terminate()
+    finally:
+        fmu.freeInstance()
+
+
+class Controller:
+    """PulseController.fmu driven by fmpy's FMU2Slave (a Python host)."""
+
+    def __init__(self, fmu_path: Path, folder: Path) -> None:
+        self.md = read_model_description(str(fmu_path))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=extract(str(fmu_path), folder),
+                             modelIdentifier="PulseController", instanceName="controller")
+        self.fmu.instantiate(loggingOn=True)
+        self.fmu.setupExperiment(startTime=0.0)
+
+    def run(self, steps: int = 3) -> list[float]:
+        self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+        forces = []
+        for k in range(steps):
+            self.fmu.doStep(currentCommunicationPoint=k * 0.01, communicationStepSize=0.01)
+            forces.append(self.fmu.getReal([self.vr["u"]])[0])
+        return forces
+
+    def close(self) -> None:
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+@pytest.mark.parametrize("code", range(len(KIND_CODES) + 1))
+def test_kind_code_selects_the_kind(pulse_controller_fmu: Path, tmp_path: Path, code) -> None:
+    c = Controller(pulse_controller_fmu, tmp_path)
+    try:
+        c.fmu.setInteger([c.vr["kind_code"]], [code])
+        c.fmu.setReal([c.vr["x_ref_offset"]], [0.01])
+        forces = c.run()
+        want = "papwc" if code == 0 else KIND_CODES[code - 1]  # 0: the String kind's start
+        assert c.fmu.getString([c.vr["kind"]]) == [want.encode()]
+        assert forces[0] > 0.0  # the reference is x_ref_offset + x_ref = 0.01 m
+    finally:
+        c.close()
+
+
+def test_kind_and_kind_code_that_disagree_are_refused(pulse_controller_fmu: Path,
+                                                      tmp_path: Path) -> None:
+    c = Controller(pulse_controller_fmu, tmp_path / "a")
+    try:
+        c.fmu.setString([c.vr["kind"]], ["pwc"])
+        c.fmu.setInteger([c.vr["kind_code"]], [KIND_CODES.index("papwc") + 1])
+        with pytest.raises(Exception, match="status 2"):  # Discard: initialization refused
+            c.run(1)
+    finally:
+        c.close()
+    same = Controller(pulse_controller_fmu, tmp_path / "b")
+    try:
+        same.fmu.setString([same.vr["kind"]], ["pwc"])
+        same.fmu.setInteger([same.vr["kind_code"]], [KIND_CODES.index("pwc") + 1])
+        same.fmu.setReal([same.vr["x_ref_offset"]], [0.01])
+        assert same.run(1)[0] > 0.0
+    finally:
+        same.close()
+
+
+def test_fmpy_simulate_shows_the_refusal_without_debug_logging(friction_plant_fmu: Path,
+                                                               tmp_path: Path) -> None:
+    out = tmp_path / "out.csv"
+    done = fmpy_cli("simulate", str(friction_plant_fmu), "--start-values", "m", "-1",
+                    "--output-interval", "0.01", "--stop-time", "0.05", "--output-file",
+                    str(out))
+    lines = [line for line in done.stderr.splitlines() if line.startswith("FrictionPlant")]
+    assert lines == ["FrictionPlant FrictionPlant: parameter m = -1.0 kg: must be > 0 kg; "
+                     "initialization refused, doStep will return Discard"], done.stderr
+    quiet = fmpy_cli("simulate", str(friction_plant_fmu), "--start-values", "m", "-1",
+                     "--output-interval", "0.01", "--stop-time", "0.05", "--output-file",
+                     str(out), env={**os.environ, "PAPWC_FMU_STDERR": "0"})
+    assert "must be > 0 kg" not in quiet.stderr
+
+
+def test_a_refused_step_is_told_once(friction_plant_fmu: Path, tmp_path: Path) -> None:
+    inputs = tmp_path / "in.csv"
+    inputs.write_text('"time","u"\n0.0,nan\n1.0,nan\n')
+    done = fmpy_cli("simulate", str(friction_plant_fmu), "--input-file", str(inputs),
+                    "--output-interval", "0.01", "--stop-time", "0.05", "--output-file",
+                    str(tmp_path / "out.csv"))
+    lines = [line for line in done.stderr.splitlines() if line.startswith("FrictionPlant")]
+    assert len(lines) == 1 and "input u = nan N is not finite" in lines[0], done.stderr
