@@ -1,26 +1,75 @@
-"""Shared fixtures: the project's FMUs, built once per test session into a temporary folder."""
+"""Shared fixtures and hooks of the test suite.
+
+- ``tests/unit/``: fast tests of the model layer, the controllers and estimators,
+  settings and scenario validation, and the master with in-process slaves;
+- ``tests/integration/``: FMUs built and run (fmpy, libcosim, SSP), the command
+  line, batteries and Dask.
+
+The project's FMUs are built once per session by :func:`papwc.fmubuild.fmus.build_all`
+into a temporary folder (fixture ``fmu_dir``); ``tests/integration/conftest.py`` has
+every integration test depend on it, so the FMUs are built before any FMU is loaded
+into this process (a loaded pythonfmu FMU puts its bundled ``pythonfmu`` copy into
+``sys.modules``, after which building fails).
+
+Tests marked ``libcosim`` or ``dask`` are skipped, not errors, when libcosimpy or dask
+is not installed (the ``cosim`` and ``dask`` extras). Every test under ``tests/unit/``
+is marked ``unit``, every test under ``tests/integration/`` ``integration``.
+"""
 
 from __future__ import annotations
 
+import importlib.util
 from pathlib import Path
 
 import pytest
 
 from papwc.fmubuild.fmus import build_all
 
+TESTS_DIR = Path(__file__).resolve().parent
+PROJECT_DIR = TESTS_DIR.parent
+
+#: Marker -> the module an extra provides.
+EXTRA_MODULES = {"libcosim": "libcosimpy", "dask": "dask.distributed"}
+
+
+def module_missing(name: str) -> bool:
+    """Whether module ``name`` cannot be imported (checked without importing it)."""
+    try:
+        return importlib.util.find_spec(name) is None
+    except (ImportError, ValueError, AttributeError):  # a parent is missing, or blocked
+        return True
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark unit and integration tests by folder; skip tests whose extra is missing."""
+    for item in items:
+        path = Path(str(item.path)).resolve()
+        for folder in ("unit", "integration"):
+            if (TESTS_DIR / folder) in path.parents:
+                item.add_marker(getattr(pytest.mark, folder))
+        for marker, module in EXTRA_MODULES.items():
+            if item.get_closest_marker(marker) is not None and module_missing(module):
+                item.add_marker(pytest.mark.skip(
+                    reason=f"needs {module} (install the extra: pip install -e '.[test]')"))
+
 
 @pytest.fixture(scope="session")
 def project_dir() -> Path:
     """Root of the project (the folder holding pyproject.toml)."""
-    return Path(__file__).resolve().parent.parent
+    return PROJECT_DIR
+
+
+@pytest.fixture(scope="session")
+def paper_toml() -> Path:
+    """The shipped scenario of the paper."""
+    return PROJECT_DIR / "scenarios" / "paper.toml"
 
 
 @pytest.fixture(scope="session")
 def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Folder holding FrictionPlant.fmu and PapwcTrivial.fmu, built once per session.
+    """Folder holding FrictionPlant.fmu, PulseController.fmu and PapwcTrivial.fmu.
 
-    All FMUs are built here before any is loaded: a pythonfmu FMU loaded into this
-    process puts its bundled ``pythonfmu`` copy into ``sys.modules``.
+    Built once per session, all FMUs before any is loaded (see the module docstring).
     """
     out = tmp_path_factory.mktemp("fmus")
     build_all(out)
@@ -45,11 +94,23 @@ def trivial_fmu(fmu_dir: Path) -> Path:
     return fmu_dir / "PapwcTrivial.fmu"
 
 
+def _extract(fmu: Path, tmp_path_factory: pytest.TempPathFactory, name: str) -> Path:
+    from fmpy import extract
+
+    return Path(extract(str(fmu), str(tmp_path_factory.mktemp(name))))
+
+
 @pytest.fixture(scope="session")
 def friction_plant_unzipped(
     friction_plant_fmu: Path, tmp_path_factory: pytest.TempPathFactory
 ) -> Path:
     """FrictionPlant.fmu extracted once, for tests that create many instances."""
-    from fmpy import extract
+    return _extract(friction_plant_fmu, tmp_path_factory, "plant")
 
-    return Path(extract(str(friction_plant_fmu), str(tmp_path_factory.mktemp("plant"))))
+
+@pytest.fixture(scope="session")
+def pulse_controller_unzipped(
+    pulse_controller_fmu: Path, tmp_path_factory: pytest.TempPathFactory
+) -> Path:
+    """PulseController.fmu extracted once."""
+    return _extract(pulse_controller_fmu, tmp_path_factory, "controller")

@@ -1,4 +1,4 @@
-"""FrictionPlant.fmu in libcosim (through libcosimpy) gives fmpy's trajectory."""
+"""FrictionPlant.fmu in libcosim (through libcosimpy) gives the master's trajectory."""
 
 from __future__ import annotations
 
@@ -6,49 +6,41 @@ from pathlib import Path
 
 import pytest
 from fmpy import read_model_description
-from libcosimpy.CosimExecution import CosimExecution
-from libcosimpy.CosimManipulator import CosimManipulator
-from libcosimpy.CosimObserver import CosimObserver
-from libcosimpy.CosimSlave import CosimLocalSlave
+from harness import open_loop
 
+from papwc.master import FmuSlave
 from papwc.model.stickslip import simulate
 
 pytestmark = pytest.mark.libcosim
+
+CosimExecution = pytest.importorskip("libcosimpy.CosimExecution").CosimExecution
+CosimManipulator = pytest.importorskip("libcosimpy.CosimManipulator").CosimManipulator
+CosimObserver = pytest.importorskip("libcosimpy.CosimObserver").CosimObserver
+CosimLocalSlave = pytest.importorskip("libcosimpy.CosimSlave").CosimLocalSlave
 
 T_NS = 10_000_000  # 0.01 s in libcosim's integer nanoseconds
 T = 0.01
 PARAMS = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
 U_SEQ = [300.0] * 5 + [0.0] * 20 + [120.0] * 10 + [-300.0] * 5 + [0.0] * 15
 U_SEQ += [250.0] * 7 + [-200.0] * 4 + [0.0] * 34
-TOL = 1e-12
 
 
-def fmpy_trajectory(fmu: Path, u_seq: list[float]) -> list[float]:
-    """Positions (m) at every step of fmpy's FMU2Slave at T with the ZOH force u_seq (N)."""
-    from fmpy import extract
-    from fmpy.fmi2 import FMU2Slave
+@pytest.fixture(autouse=True, scope="module")
+def _quiet_libcosim() -> None:
+    """libcosim logs at debug level to stderr by default; keep warnings and errors."""
+    from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
 
-    md = read_model_description(str(fmu))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    unzipdir = extract(str(fmu))
-    slave = FMU2Slave(
-        guid=md.guid, unzipDirectory=unzipdir, modelIdentifier="FrictionPlant", instanceName="p"
-    )
-    slave.instantiate()
-    slave.setupExperiment(startTime=0.0)
-    slave.enterInitializationMode()
-    slave.exitInitializationMode()
-    xs = [slave.getReal([vr["x"]])[0]]
-    for k, u in enumerate(u_seq):
-        slave.setReal([vr["u"]], [u])
-        slave.doStep(k * T, T)
-        xs.append(slave.getReal([vr["x"]])[0])
-    slave.terminate()
-    slave.freeInstance()
-    return xs
+    log_output_level(CosimLogLevel.WARNING)
 
 
-def test_libcosim_trajectory_equals_fmpy(friction_plant_fmu: Path) -> None:
+def master_trajectory(fmu: Path, u_seq: list[float]) -> list[float]:
+    """Positions (m) at every step of the master's FmuSlave at T with the ZOH force u_seq (N)."""
+    with FmuSlave(fmu) as plant:
+        _, rec = open_loop(plant, u_seq, T, ("x",))
+    return rec.column("x")
+
+
+def test_libcosim_trajectory_equals_the_master(friction_plant_fmu: Path) -> None:
     md = read_model_description(str(friction_plant_fmu))
     vr = {v.name: v.valueReference for v in md.modelVariables}
     execution = CosimExecution.from_step_size(T_NS)
@@ -66,12 +58,15 @@ def test_libcosim_trajectory_equals_fmpy(friction_plant_fmu: Path) -> None:
         xs.append(observer.last_real_values(index, [vr["x"]])[0])
     assert execution.status().current_time == len(U_SEQ) * T_NS
 
-    reference = fmpy_trajectory(friction_plant_fmu, U_SEQ)
+    reference = master_trajectory(friction_plant_fmu, U_SEQ)
     exact = [x for x, _ in simulate(U_SEQ, T, **PARAMS)]
     assert len(xs) == len(reference) == len(exact)
-    for k, (x, x_fmpy, x_exact) in enumerate(zip(xs, reference, exact, strict=True)):
-        assert abs(x - x_fmpy) <= TOL, f"step {k}"
-        assert abs(x - x_exact) <= TOL, f"step {k}"
+    assert reference == exact  # the master steps the FMU at h = T exactly
+    # libcosim steps with h = t_(k+1) - t_k from its nanosecond grid, which differs
+    # from T in the last bits: measured at most 9.5e-18 m, on positions up to 3.6e-3 m
+    # (formerly checked to 1e-12).
+    for k, (x, x_master) in enumerate(zip(xs, reference, strict=True)):
+        assert abs(x - x_master) <= 2e-17, f"step {k}"
 
 
 def test_libcosim_stops_with_an_error_on_a_non_finite_force(friction_plant_fmu: Path) -> None:

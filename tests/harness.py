@@ -1,0 +1,355 @@
+"""Test helpers shared by the unit and integration tests (importable: ``tests/`` holds the
+root conftest, so pytest puts this folder on ``sys.path``).
+
+- :class:`FmuInstance`: the one fmpy harness. One instance of an FMU through fmpy's
+  ``FMU2Slave`` with every log message kept, for the tests that must call FMI
+  functions themselves (bad input, refusals, state get/set/serialize, logging). It
+  also offers the master's :class:`papwc.master.Slave` interface, so that whatever
+  stepping such a test needs is done by the master, not by a loop of its own.
+- :class:`Recorder`: an observer of the master that records a slave's variables at
+  every communication point.
+- :func:`open_loop`: a plant driven open loop by a zero-order-hold force sequence
+  through the master (:class:`papwc.master.SignalSlave` into the plant's ``u``).
+- :class:`ScriptedController`: plays a fixed force sequence with the interface of
+  :class:`papwc.controllers.Controller`.
+- :func:`step_pulse`, :func:`segment`, :func:`stop_time`: independent references of
+  the plant's motion (its own steps, to rest; 40-digit closed forms).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Mapping, Sequence
+from ctypes import byref
+from decimal import Decimal, localcontext
+from pathlib import Path
+from typing import Any, NamedTuple
+
+from papwc.master import Execution, FixedStepAlgorithm, SignalSlave, Slave
+from papwc.model.stickslip import simulate
+
+__all__ = [
+    "FmuInstance",
+    "Message",
+    "Recorder",
+    "ScriptedController",
+    "open_loop",
+    "segment",
+    "settings_start_values",
+    "step_pulse",
+    "stop_time",
+]
+
+#: fmi2Status codes, as the logger and FMICallException report them.
+FMI2_OK, FMI2_WARNING, FMI2_DISCARD, FMI2_ERROR, FMI2_FATAL = range(5)
+
+
+class Message(NamedTuple):
+    """One message the FMU logged."""
+
+    status: int
+    category: str
+    text: str
+
+
+class FmuInstance:
+    """One FMU instance through fmpy's ``FMU2Slave``, its log messages kept.
+
+    The raw instance is :attr:`fmu` (``getFMUstate``, ``doStep``, ...); :meth:`set`
+    and :meth:`get` set and read variables of any type by name, :meth:`init` runs
+    the initialization with start values. As a :class:`papwc.master.Slave` it can
+    be added to an :class:`papwc.master.Execution` (start values from
+    :meth:`set_start_values`; ``restart`` is not offered: use the raw state calls).
+
+    Parameters
+    ----------
+    unzipdir : Path
+        The extracted FMU.
+    name : str
+        Instance name.
+    logging : bool
+        ``loggingOn`` of fmi2Instantiate.
+    """
+
+    def __init__(self, unzipdir: Path, name: str = "instance", logging: bool = True) -> None:
+        from fmpy import read_model_description
+        from fmpy.fmi1 import calloc, free
+        from fmpy.fmi2 import (
+            FMU2Slave,
+            fmi2CallbackAllocateMemoryTYPE,
+            fmi2CallbackFreeMemoryTYPE,
+            fmi2CallbackFunctions,
+            fmi2CallbackLoggerTYPE,
+        )
+        from fmpy.logging import addLoggerProxy
+
+        self.name = name
+        self.md = read_model_description(str(unzipdir))
+        self.vars = {v.name: v for v in self.md.modelVariables}
+        self.messages: list[Message] = []
+        self.values: list[Any] = []
+        self.start: dict[str, Any] = {}
+        self.watched: list[str] = []
+        self.resume_state: Any = None
+        self.callbacks = fmi2CallbackFunctions()
+        self.logger = fmi2CallbackLoggerTYPE(self.log)
+        self.callbacks.logger = self.logger
+        self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(byref(self.callbacks))
+        self.fmu = FMU2Slave(
+            guid=self.md.guid,
+            unzipDirectory=str(unzipdir),
+            modelIdentifier=self.md.coSimulation.modelIdentifier,
+            instanceName=name,
+        )
+        self.fmu.instantiate(callbacks=self.callbacks, loggingOn=logging)
+
+    def log(self, component, instance, status, category, message) -> None:
+        """The logger callback: keep the message."""
+        self.messages.append(
+            Message(status, (category or b"").decode(), (message or b"").decode())
+        )
+
+    def logged(self, status: int) -> list[str]:
+        """Texts of the messages logged with ``status``."""
+        return [m.text for m in self.messages if m.status == status]
+
+    # -- values by name ------------------------------------------------------------------------
+    def set(self, name: str, value: Any) -> None:
+        """Set one variable (Real, Integer, Boolean or String)."""
+        var = self.vars[name]
+        vr = [var.valueReference]
+        if var.type == "Real":
+            self.fmu.setReal(vr, [float(value)])
+        elif var.type in ("Integer", "Enumeration"):
+            self.fmu.setInteger(vr, [int(value)])
+        elif var.type == "Boolean":
+            self.fmu.setBoolean(vr, [bool(value)])
+        else:
+            self.fmu.setString(vr, [str(value)])
+
+    def get(self, name: str) -> Any:
+        """Value of one variable."""
+        var = self.vars[name]
+        vr = [var.valueReference]
+        if var.type == "Real":
+            return self.fmu.getReal(vr)[0]
+        if var.type in ("Integer", "Enumeration"):
+            return self.fmu.getInteger(vr)[0]
+        if var.type == "Boolean":
+            return bool(self.fmu.getBoolean(vr)[0])
+        return self.fmu.getString(vr)[0].decode()
+
+    def get_many(self, *names: str) -> list[Any]:
+        """Values of several variables, in order."""
+        return [self.get(name) for name in names]
+
+    def init(self, start_time: float = 0.0, **start: Any) -> None:
+        """setupExperiment, enter initialization, set ``start``, exit initialization."""
+        self.fmu.setupExperiment(startTime=start_time)
+        self.fmu.enterInitializationMode()
+        for name, value in start.items():
+            self.set(name, value)
+        self.fmu.exitInitializationMode()
+
+    # -- the master's Slave interface ----------------------------------------------------------
+    def variables(self) -> Mapping[str, str]:
+        return {name: v.causality for name, v in self.vars.items()}
+
+    def set_start_values(self, values: Mapping[str, Any]) -> None:
+        self.start.update(values)
+
+    def watch(self, names: Sequence[str]) -> list[int]:
+        for name in names:
+            if name not in self.watched:
+                self.watched.append(name)
+        return [self.watched.index(name) for name in names]
+
+    def refresh(self) -> None:
+        """Read the watched variables into :attr:`values` (after a raw FMI call)."""
+        self.values = self.get_many(*self.watched)
+
+    def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
+        def set_inputs(*values: Any) -> None:
+            for name, value in zip(names, values, strict=True):
+                self.set(name, value)
+
+        return set_inputs
+
+    def resume_from(self, state: Any) -> None:
+        """Have the next :meth:`initialize` restore the FMU state ``state`` (from
+        ``fmu.getFMUstate`` or ``fmu.deSerializeFMUstate``) instead of initializing: a
+        master then continues the instance from there."""
+        self.resume_state = state
+
+    def initialize(self, start_time: float = 0.0) -> None:
+        if self.resume_state is not None:
+            state, self.resume_state = self.resume_state, None
+            self.fmu.setFMUstate(state)
+        else:
+            self.init(start_time, **self.start)
+        self.refresh()
+
+    def restart(self, start_time: float = 0.0) -> None:
+        raise NotImplementedError("FmuInstance: restore a state with fmu.setFMUstate instead")
+
+    def do_step(self, t: float, h: float) -> None:
+        self.fmu.doStep(t, h)
+        self.refresh()
+
+    def close(self) -> None:
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+class Recorder:
+    """Observer of the master: ``slave``'s variables ``names`` at every communication point.
+
+    ``rows[k]`` holds the values at t_k (``rows[0]`` right after (re)initialization);
+    a failed step adds no row.
+    """
+
+    def __init__(self, slave: Slave, names: Sequence[str]) -> None:
+        self.slave = slave
+        self.names = tuple(names)
+        self.rows: list[tuple[Any, ...]] = []
+
+    def setup(self, execution: Execution) -> None:
+        self.index = self.slave.watch(self.names)
+
+    def current_row(self) -> tuple[Any, ...]:
+        """The watched values of the slave now."""
+        values = self.slave.values
+        return tuple(values[i] for i in self.index)
+
+    def initialized(self, t: float) -> None:
+        self.rows = [self.current_row()]
+
+    def step_complete(self, k: int, t: float) -> None:
+        self.rows.append(self.current_row())
+
+    def step_failed(self, k: int, t: float) -> None:
+        pass
+
+    def finished(self, k: int, t: float) -> None:
+        pass
+
+    def column(self, name: str) -> list[Any]:
+        """The values of ``name`` at every communication point recorded."""
+        i = self.names.index(name)
+        return [row[i] for row in self.rows]
+
+    def states(self) -> list[tuple[float, float]]:
+        """``(x, v)`` at every communication point (``names`` must hold x and v)."""
+        return list(zip(self.column("x"), self.column("v"), strict=True))
+
+
+def open_loop(
+    plant: Slave,
+    u_seq: Sequence[float],
+    T: float,
+    names: Sequence[str] = ("x", "v", "x_meas", "stuck"),
+    steps: int | None = None,
+    start_time: float = 0.0,
+) -> tuple[Execution, Recorder]:
+    """Drive ``plant`` open loop with the force sequence ``u_seq`` (N) through the master.
+
+    A :class:`papwc.master.SignalSlave` plays ``u_seq`` (zero-order hold, step k over
+    [t_k, t_k+1]) into the plant's input ``u``; a :class:`Recorder` keeps the
+    plant's ``names``. The execution is initialized and stepped ``steps`` times
+    (default: ``len(u_seq)``) from ``start_time`` (s); it is returned with the recorder
+    to step further.
+    """
+    execution = Execution(FixedStepAlgorithm(T, "immediate"), start_time)
+    signal = execution.add_slave(SignalSlave({"u": list(u_seq)}, name="force"))
+    execution.add_slave(plant)
+    execution.connect(signal, "u", plant, "u")
+    recorder = execution.add_observer(Recorder(plant, names))
+    execution.initialize()
+    execution.step(len(u_seq) if steps is None else steps)
+    return execution, recorder
+
+
+def settings_start_values(settings, T: float) -> dict[str, Any]:
+    """PulseController.fmu start values of ``settings`` (None -> -1.0) and period ``T`` (s)."""
+    values = {name: (-1.0 if value is None else value)
+              for name, value in settings.to_mapping(with_none=True).items()}
+    values["T"] = T
+    return values
+
+
+class ScriptedController:
+    """Plays a fixed force sequence (N); the interface of papwc.controllers.Controller."""
+
+    def __init__(self, forces: Sequence[float], T: float = 0.01) -> None:
+        self.forces = list(forces)
+        self.T = T
+        self.mode = 1
+        self.pulses = 0
+        self.revision = 0
+
+    def reset(self) -> None:
+        pass
+
+    def update(self, t: float, x_meas: float, x_ref: float) -> float:
+        k = int(round(t / self.T))
+        return self.forces[k] if k < len(self.forces) else 0.0
+
+    def estimates(self) -> dict[str, float]:
+        return {"b_hat": math.nan, "f_c_hat": math.nan}
+
+
+# -- independent references of the plant's motion ----------------------------------------------
+def step_pulse(f_p, n, h, m, f_c, f_s, c):
+    """Displacement of an n-sample pulse from rest to rest, from the plant's own steps.
+
+    :func:`papwc.model.stickslip.simulate` applies ``f_p`` over n steps of size h,
+    then u = 0 until the velocity is exactly 0.0 (the coast is bounded by the
+    Coulomb friction alone: at most ``m*|v|/f_c`` s). A reference of the physics
+    built from :func:`~papwc.model.stickslip.step`, independent of the closed
+    forms of :mod:`papwc.model.pulse`.
+    Returns (d, velocity at pulse end, number of coasting steps).
+    """
+    pulse = simulate([f_p] * n, h, m, f_c, f_s, c)
+    x_end, v_end = pulse[-1]
+    if v_end == 0.0:
+        return x_end, v_end, 0
+    assert f_c > 0.0, "without Coulomb friction the mass never comes to rest"
+    n_coast = math.ceil(m * abs(v_end) / (f_c * h)) + 2
+    coast = simulate([0.0] * n_coast, h, m, f_c, f_s, c, x0=x_end, v0=v_end)
+    k = next(i for i, (_, v) in enumerate(coast) if v == 0.0)
+    assert all(state == coast[k] for state in coast[k:]), "the mass did not stay at rest"
+    return coast[k][0], v_end, k
+
+
+def _dec(*values):
+    return (Decimal(float(q)) for q in values)
+
+
+def segment(x0, v0, force, t, m, c):
+    """State after time t under a constant net force (no friction switching).
+
+    Evaluated with 40 significant digits, so the closed forms are accurate for any
+    c >= 0 despite their cancellation at small c*t/m.
+    """
+    with localcontext() as ctx:
+        ctx.prec = 40
+        x0, v0, force, t, m, c = _dec(x0, v0, force, t, m, c)
+        if c == 0:
+            return float(x0 + v0 * t + force * t * t / (2 * m)), float(v0 + force * t / m)
+        a = c / m
+        v_inf = force / c
+        decay = (-a * t).exp()
+        x = x0 + v_inf * t + (v0 - v_inf) * (1 - decay) / a
+        return float(x), float(v_inf + (v0 - v_inf) * decay)
+
+
+def stop_time(v0, force, m, c):
+    """Time at which a mass sliding at v0 under a decelerating net force stops."""
+    with localcontext() as ctx:
+        ctx.prec = 40
+        v0, force, m, c = _dec(v0, force, m, c)
+        if c == 0:
+            return float(-m * v0 / force)
+        return float((m / c) * (1 - c * v0 / force).ln())
