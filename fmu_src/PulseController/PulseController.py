@@ -80,7 +80,7 @@ class PulseController(CheckedSlave):
         if var.name == "pulses":
             return lambda: 0 if self._controller is None else self._controller.pulses
         if var.name == "mode":
-            return lambda: Mode.PULSE if self._controller is None else self._controller.mode
+            return lambda: Mode.SETTLED if self._controller is None else self._controller.mode
         if var.name == "maneuver":
             return lambda: self.maneuver
         return None

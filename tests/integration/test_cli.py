@@ -200,7 +200,7 @@ def test_help_lists_every_command(capsys):
     out = capsys.readouterr().out
     for name in COMMANDS:
         assert name in out
-    assert COMMANDS == ("build", "run", "reproduce", "bench", "battery")
+    assert COMMANDS == ("build", "run", "reproduce", "bench", "battery", "cosim", "hostenv")
 
 
 def test_build_command_writes_the_fmus_and_the_ssp(tmp_path, capsys):

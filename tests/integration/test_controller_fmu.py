@@ -39,12 +39,7 @@ from papwc.master import (
     run_closed_loop,
     run_controller,
 )
-from papwc.model.settings import (
-    CONTROLLER_INPUTS,
-    CONTROLLER_OUTPUTS,
-    CONTROLLER_SETTINGS,
-    SAMPLE_PERIOD,
-)
+from papwc.model.settings import PULSE_CONTROLLER_VARIABLES
 from papwc.scenario import Scenario, load_scenario
 
 T = 0.01
@@ -119,13 +114,13 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
     assert not cs.canHandleVariableCommunicationStepSize
     variables = {v.name: v for v in md.modelVariables}
     settings = set(ControllerSettings.field_names())
-    assert {n for n, v in variables.items() if v.causality == "parameter"} == settings | {"T"}
+    assert {n for n, v in variables.items() if v.causality == "parameter"} == settings | {
+        "T", "kind_code", "x_ref_offset"}
     assert {n for n, v in variables.items() if v.causality == "input"} == {
         "x_meas", "x_ref", "maneuver"}
     outputs = {n for n, v in variables.items() if v.causality == "output"}
     assert outputs == {"u", "b_hat", "f_c_hat", "pulses", "mode"}
-    table = {v.name: v for v in CONTROLLER_SETTINGS + (SAMPLE_PERIOD,) + CONTROLLER_INPUTS
-             + CONTROLLER_OUTPUTS}
+    table = {v.name: v for v in PULSE_CONTROLLER_VARIABLES}
     assert set(variables) == set(table)
     for name, var in variables.items():
         assert var.description, name
@@ -136,7 +131,7 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
     assert variables["kind"].type == "String" and variables["kind"].start == "papwc"
     assert float(variables["t_p_max"].start) == math.inf
     assert variables["u"].initial == "exact" and float(variables["u"].start) == 0.0
-    assert variables["mode"].start == str(Mode.PULSE)
+    assert variables["mode"].start == str(Mode.SETTLED)
     assert variables["maneuver"].type == "Integer" and variables["maneuver"].start == "0"
     for name in ("f_p_min", "k_p", "k_d"):  # optional: -1 selects the default
         assert float(variables[name].start) == -1.0
@@ -249,15 +244,10 @@ def test_estimates_before_and_after_initialization(controller: FmuInstance, pape
     assert controller.get_many("u", "pulses") == [0.0, 0]
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "package bug: PulseController.fmu declares mode with initial='exact', start=1 and "
-    "describes it as '1 pulse (also before the first step)', but after "
-    "fmi2ExitInitializationMode and before the first step it reads 3 (settled): the getter "
-    "returns the new controller's mode, which Controller.reset() sets to Mode.SETTLED"))
 def test_mode_before_the_first_step_is_its_start_value(controller: FmuInstance) -> None:
-    assert controller.get("mode") == Mode.PULSE  # before initialization: the start value
+    assert controller.get("mode") == Mode.SETTLED  # before initialization: the start value
     controller.init(x_ref=0.01)
-    assert controller.get("mode") == Mode.PULSE
+    assert controller.get("mode") == Mode.SETTLED
 
 
 @pytest.mark.parametrize("kind", sorted(CONTROLLER_KINDS))

@@ -23,10 +23,10 @@ from papwc.fmubuild.model_description import (
     xml_number,
 )
 from papwc.fmubuild.model_description import read_model_description as read_md_xml
-from papwc.fmubuild.pythonfmu_build import build_pythonfmu
+from papwc.fmubuild.pythonfmu_build import FmuSource, build_pythonfmu
 from papwc.model.plant import PLANT_VARIABLES
 from papwc.model.units import UNIT_DEFINITIONS
-from papwc.model.variables import Variable
+from papwc.model.variables import FMU_DEFAULT_SENTINEL, Variable
 
 PACKAGE_DIR = Path(papwc.__file__).resolve().parent
 FMU_NAMES = [r.name for r in FMUS]
@@ -128,7 +128,9 @@ def test_every_variable_has_the_metadata_of_its_table_entry(
     else:
         assert typed.get("unit") is None
     ranged = var.causality == "parameter" and var.type in ("Real", "Integer")
-    for bound, value in (("min", var.min if not var.optional else None), ("max", var.max)):
+    # an optional setting's min is the value that selects its computed default
+    low = FMU_DEFAULT_SENTINEL if var.optional and var.min is not None else var.min
+    for bound, value in (("min", low), ("max", var.max)):
         if ranged and value is not None:
             cast = float if var.type == "Real" else int
             assert typed.get(bound) == xml_number(cast(value)), bound
@@ -188,9 +190,9 @@ def test_plant_model_description_contract(friction_plant_fmu: Path) -> None:
         "v0": ("parameter", "fixed", "m/s", "0"),
         "x_resolution": ("parameter", "fixed", "m", "0"),
         "u": ("input", "continuous", "N", "0"),
-        "x": ("output", "continuous", "m", "0"),
-        "v": ("output", "continuous", "m/s", "0"),
-        "x_meas": ("output", "continuous", "m", "0"),
+        "x": ("output", "continuous", "m", None),
+        "v": ("output", "continuous", "m/s", None),
+        "x_meas": ("output", "continuous", "m", None),
     }
     variables = {v.name: v for v in md.modelVariables}
     assert set(variables) == set(expected) | {"stuck"}
@@ -199,14 +201,17 @@ def test_plant_model_description_contract(friction_plant_fmu: Path) -> None:
         v = variables[name]
         assert (v.type, v.causality, v.variability) == ("Real", causality, variability)
         assert v.unit == unit, name
-        assert float(v.start) == float(start), name
+        if start is None:  # calculated from x0, v0, x_resolution: no start value
+            assert v.start is None, name
+        else:
+            assert float(v.start) == float(start), name
     assert variables["stuck"].type == "Boolean"
     assert variables["stuck"].causality == "output"
-    assert variables["stuck"].start in ("true", True)
+    assert variables["stuck"].start is None
     for v in md.modelVariables:
         assert v.description, f"variable {v.name} has no description"
         if v.causality == "output":
-            assert v.initial == "exact", v.name
+            assert v.initial == "calculated", v.name
     # ranges: m > 0 (written min = 0), f_c, f_s, c, x_resolution >= 0; x0, v0 unbounded
     assert {n: v.min for n, v in variables.items() if v.min is not None} == {
         "m": "0.0", "f_c": "0.0", "f_s": "0.0", "c": "0.0", "x_resolution": "0.0"}
@@ -272,7 +277,7 @@ def test_xml_number_round_trips(value, text):
 # -- build errors --------------------------------------------------------------------------------
 def test_build_of_a_missing_script_is_a_build_error(tmp_path: Path) -> None:
     with pytest.raises(BuildError, match="Missing.py does not exist"):
-        build_pythonfmu(tmp_path / "Missing.py", tmp_path, variables=())
+        build_pythonfmu(FmuSource(tmp_path / "Missing.py", ()), tmp_path)
 
 
 def test_a_model_that_fails_to_build_is_a_build_error(tmp_path: Path) -> None:
@@ -287,7 +292,7 @@ def test_a_model_that_fails_to_build_is_a_build_error(tmp_path: Path) -> None:
         "        return True\n"
     )
     with pytest.raises(BuildError, match="ValueError: no variables here"):
-        build_pythonfmu(script, tmp_path / "out", variables=())
+        build_pythonfmu(FmuSource(script, ()), tmp_path / "out")
     assert "Broken" not in sys.modules
     assert not (tmp_path / "out" / "Broken.fmu").exists()
 
@@ -296,10 +301,10 @@ def test_a_bundle_needs_a_package_name(tmp_path: Path) -> None:
     script = tmp_path / "Model.py"
     script.write_text("")
     with pytest.raises(BuildError, match="a bundle needs a package name"):
-        build_pythonfmu(script, tmp_path, variables=(), bundle={"model": PACKAGE_DIR / "model"})
+        build_pythonfmu(FmuSource(script, (), bundle={"model": PACKAGE_DIR / "model"}), tmp_path)
     with pytest.raises(BuildError, match="source .*nowhere does not exist"):
-        build_pythonfmu(script, tmp_path, variables=(), package="p",
-                        bundle={"model": tmp_path / "nowhere"})
+        build_pythonfmu(FmuSource(script, (), package="p", bundle={"model": tmp_path / "nowhere"}),
+                        tmp_path)
 
 
 # -- what each FMU bundles -----------------------------------------------------------------------

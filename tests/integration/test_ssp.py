@@ -244,12 +244,6 @@ def bound_parameter_set(ssp: Path) -> ParameterSet:
     return parameter_set
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "package bug: ClosedLoop.ssp now declares the controller's x_ref as an input connector "
-    "(papwc.fmubuild.ssp declares CONTROLLER_INPUTS[:2]); fmpy's simulate_ssp sets every "
-    "input connector before each step, an unconnected one to 0.0, so the x_ref = 0.01 m "
-    "passed as a parameter is overwritten with 0: the controller never pulses, plant.x "
-    "stays 0.0 (the master: 6.564e-05 m at t = 0.02 s). The README documents this run."))
 def test_fmpy_simulate_ssp_runs_it_with_the_bindings_passed(closed_loop_ssp: Path, paper) -> None:
     result = simulate_ssp(
         str(closed_loop_ssp),

@@ -189,9 +189,9 @@ CONTROLLER_OUTPUTS: tuple[Variable, ...] = (
              "N", 0.0, causality="output", initial="calculated", variability="discrete"),
     Variable("pulses", "Number of pulses started since the start of the simulation", "", 0,
              causality="output", type="Integer", initial="exact"),
-    Variable("mode", "Controller mode after the last step: 0 coarse, 1 pulse (also before "
-             "the first step), 2 wait, 3 settled", "", 1, causality="output",
-             type="Integer", initial="exact"),
+    Variable("mode", "Controller mode after the last step: 0 coarse, 1 pulse, 2 wait, "
+             "3 settled (also before the first step: the mass is taken to be at rest and no "
+             "force is applied)", "", 3, causality="output", type="Integer", initial="exact"),
 )
 
 
