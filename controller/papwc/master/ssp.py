@@ -1,384 +1,34 @@
-"""Run an SSP 1.0 system of FMI 2.0 Co-Simulation FMUs with the project's master.
+"""Running an SSP 1.0 system of FMI 2.0 Co-Simulation FMUs with the project's master.
 
-:func:`read_ssp` reads an archive's ``SystemStructure.ssd`` and checks it
-against the model descriptions of the FMUs it holds, before anything runs:
-
-- every ``ssd:Component`` (``application/x-fmu-sharedlibrary``) whose
-  ``source`` is an FMU in the archive;
-- every ``ssd:Connection`` between two components, from an output to an input
-  of the same type (Real, Integer, Boolean, String);
-- the parameter bindings: inline ``ssd:ParameterValues`` or an ``.ssv`` file of
-  the archive, on a component (names of the FMU's variables) or on the system
-  (names ``component.variable``, which take precedence), of types Real,
-  Integer, Boolean and String; later bindings take precedence over earlier
-  ones, as SSP 1.0 says. Unlike SSP 1.0, which ignores a name no variable
-  has, a binding to a variable the FMU lacks is an error;
-- the ``ssd:DefaultExperiment`` (start and stop time) and the fixed step of the
-  Open Simulation Platform annotation (``osp:FixedStepAlgorithm
-  baseStepSize``) or of OMSimulator's (``oms:FixedStepMaster stepSize``).
-
-Every problem raises :class:`papwc.errors.SspError` naming the archive and the
-SSD element. :func:`run_ssp` then runs the system as libcosim's fixed-step
-algorithm does: every component an :class:`~papwc.master.fmu.FmuSlave`, all
-stepped side by side at the fixed step with the values of the previous
-communication point (:class:`~papwc.master.algorithm.FixedStepAlgorithm` with
-``"delayed"`` timing, Jacobi), the outputs passed to the connected inputs after
+:func:`run_ssp` runs a system read by :func:`papwc.master.ssd.read_ssp` as
+libcosim's fixed-step algorithm does: every component an
+:class:`~papwc.master.fmu.FmuSlave`, all stepped side by side at the fixed step
+with the values of the previous communication point
+(:class:`~papwc.master.algorithm.FixedStepAlgorithm` with ``"delayed"``
+timing, Jacobi), the outputs passed to the connected inputs after
 initialization, and records the chosen variables at every communication point
 (:class:`~papwc.master.observers.VariableObserver`).
 """
 
 from __future__ import annotations
 
-import io
 import math
-import os
 import tempfile
-import xml.etree.ElementTree as ET
-import zipfile
 from collections.abc import Sequence
-from dataclasses import dataclass, field
-from pathlib import Path, PurePosixPath
+from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 from papwc.errors import FmuError, SspError
 from papwc.master.algorithm import FixedStepAlgorithm
 from papwc.master.execution import Execution
 from papwc.master.observers import VariableObserver
+from papwc.master.ssd import SspArchive, SspSystem, read_ssp
 
-__all__ = [
-    "SspBinding",
-    "SspComponent",
-    "SspConnection",
-    "SspSystem",
-    "SspRun",
-    "read_ssp",
-    "run_ssp",
-]
+__all__ = ["SspRun", "read_ssp", "run_ssp"]
 
-_NS = {
-    "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
-    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
-    "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
-    "osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
-    "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
-}
-_SSD = "SystemStructure.ssd"
-_FMU_TYPE = "application/x-fmu-sharedlibrary"
-_TYPES = ("Real", "Integer", "Boolean", "String")
-#: Largest archive member read (FMUs and SSD), bytes.
-MAX_MEMBER_BYTES = 1 << 30
 #: Most communication steps one run may take.
 MAX_STEPS = 10_000_000
-
-
-@dataclass(frozen=True)
-class SspBinding:
-    """One bound value: ``component.variable = value`` of SSP type ``type``."""
-
-    component: str
-    variable: str
-    type: str
-    value: Any
-    element: str
-
-
-@dataclass(frozen=True)
-class SspConnection:
-    """``start.output -> end.input``."""
-
-    start: str
-    output: str
-    end: str
-    input: str
-    element: str
-
-
-@dataclass
-class SspComponent:
-    """A component: its FMU (archive member), model variables (name -> (causality, type))."""
-
-    name: str
-    source: str
-    element: str
-    variables: dict[str, tuple[str, str]] = field(default_factory=dict)
-    start_values: dict[str, Any] = field(default_factory=dict)
-
-
-@dataclass
-class SspSystem:
-    """A checked SSP system: components, connections, start values, experiment."""
-
-    path: Path
-    name: str
-    components: dict[str, SspComponent]
-    connections: list[SspConnection]
-    start_time: float
-    stop_time: float | None
-    step_size: float | None
-    step_source: str
-
-    def outputs(self) -> list[str]:
-        """``component.variable`` of every output that can be recorded, in SSD order."""
-        return [f"{c.name}.{name}" for c in self.components.values()
-                for name, (causality, typ) in c.variables.items()
-                if causality == "output" and typ != "String"]
-
-
-def _tag(element: ET.Element) -> str:
-    """``<ssd:Component name="plant" source="...">`` as the message names an element."""
-    tag = element.tag
-    for prefix, uri in _NS.items():
-        tag = tag.replace("{" + uri + "}", prefix + ":")
-    keys = ("name", "source", "startElement", "startConnector", "endElement", "endConnector",
-            "type")
-    attrs = " ".join(f'{k}="{element.get(k)}"' for k in keys if element.get(k) is not None)
-    return f"<{tag}{' ' + attrs if attrs else ''}>"
-
-
-def _float(text: str | None, where: str, what: str) -> float:
-    try:
-        value = float(text)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise SspError(f"{where}: {what} = {text!r} is not a number") from None
-    return value
-
-
-def _value(typed: ET.Element, where: str) -> tuple[str, Any]:
-    """The SSP type and the value of an ``ssv:Real``/``Integer``/``Boolean``/``String``."""
-    kind = typed.tag.rsplit("}", 1)[-1]
-    text = typed.get("value")
-    if kind not in _TYPES:
-        raise SspError(f"{where}: parameter type ssv:{kind} is not supported; supported: "
-                       + ", ".join(f"ssv:{t}" for t in _TYPES))
-    if text is None:
-        raise SspError(f"{where}: ssv:{kind} has no value attribute")
-    if kind == "Real":
-        return kind, _float(text, where, "value")
-    if kind == "Integer":
-        try:
-            return kind, int(text)
-        except ValueError:
-            raise SspError(f"{where}: Integer value = {text!r} is not a whole number") from None
-    if kind == "Boolean":
-        if text not in ("true", "false", "1", "0"):
-            raise SspError(f"{where}: Boolean value = {text!r}: must be true, false, 1 or 0")
-        return kind, text in ("true", "1")
-    return kind, text
-
-
-class _Archive:
-    """The members of an SSP archive, read with bounds."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        if not path.is_file():
-            raise SspError(f"{path}: no such SSP file")
-        try:
-            self.zip = zipfile.ZipFile(path)
-        except (OSError, zipfile.BadZipFile) as exc:
-            raise SspError(f"{path}: not an SSP archive (a zip file): {exc}") from exc
-        self.names = {info.filename: info for info in self.zip.infolist()}
-
-    def member(self, name: str) -> str | None:
-        """The archive name of ``name`` (relative to the root, ``./`` allowed), or None."""
-        clean = str(PurePosixPath(name.removeprefix("./")))
-        return clean if clean in self.names else None
-
-    def read(self, name: str, where: str) -> bytes:
-        info = self.names[name]
-        if info.file_size > MAX_MEMBER_BYTES:
-            raise SspError(f"{where}: {name} is {info.file_size} bytes; at most "
-                           f"{MAX_MEMBER_BYTES} are read")
-        try:
-            return self.zip.read(name)
-        except (OSError, zipfile.BadZipFile, RuntimeError) as exc:
-            raise SspError(f"{self.path}: cannot read {name}: {exc}") from exc
-
-
-def _model_variables(data: bytes, where: str) -> dict[str, tuple[str, str]]:
-    """name -> (causality, type) of an FMI 2.0 CS FMU given as bytes."""
-    try:
-        with zipfile.ZipFile(io.BytesIO(data)) as fmu:
-            root = ET.fromstring(fmu.read("modelDescription.xml"))
-    except (KeyError, zipfile.BadZipFile, ET.ParseError, OSError) as exc:
-        raise SspError(f"{where}: not an FMU with a readable modelDescription.xml: {exc}") from exc
-    if root.get("fmiVersion") != "2.0":
-        raise SspError(f"{where}: fmiVersion = {root.get('fmiVersion')!r}; only FMI 2.0 FMUs "
-                       "are supported")
-    if root.find("CoSimulation") is None:
-        raise SspError(f"{where}: not a Co-Simulation FMU")
-    out = {}
-    for sv in root.iter("ScalarVariable"):
-        typed = next((c for c in sv if c.tag in (*_TYPES, "Enumeration")), None)
-        typ = "Integer" if typed is None or typed.tag == "Enumeration" else typed.tag
-        out[sv.get("name")] = (sv.get("causality", "local"), typ)
-    return out
-
-
-def _bindings(archive: _Archive, parent: ET.Element, where: str) -> list[tuple[str, ET.Element]]:
-    """``(name, typed value element)`` of every parameter bound on ``parent``, in order."""
-    found: list[tuple[str, ET.Element]] = []
-    for binding in parent.findall("ssd:ParameterBindings/ssd:ParameterBinding", _NS):
-        here = f"{where} {_tag(binding)}"
-        if binding.find("ssd:ParameterMapping", _NS) is not None:
-            raise SspError(f"{here}: ssd:ParameterMapping is not supported")
-        kind = binding.get("type", "application/x-ssp-parameter-set")
-        if kind != "application/x-ssp-parameter-set":
-            raise SspError(f"{here}: type {kind!r} is not supported; supported: "
-                           "application/x-ssp-parameter-set")
-        inline = binding.find("ssd:ParameterValues/ssv:ParameterSet", _NS)
-        source = binding.get("source")
-        if inline is not None:
-            parameter_set = inline
-        elif source:
-            member = archive.member(source)
-            if member is None:
-                raise SspError(f"{here}: the archive has no {source}")
-            try:
-                parameter_set = ET.fromstring(archive.read(member, here))
-            except ET.ParseError as exc:
-                raise SspError(f"{here}: {source} is not well-formed XML: {exc}") from exc
-        else:
-            raise SspError(f"{here}: neither ssd:ParameterValues nor a source")
-        prefix = binding.get("prefix", "")
-        for parameter in parameter_set.findall("ssv:Parameters/ssv:Parameter", _NS):
-            name = parameter.get("name", "")
-            typed = next(iter(parameter), None)
-            if typed is None:
-                raise SspError(f"{here} {_tag(parameter)}: no value")
-            if prefix:
-                if not name.startswith(prefix):
-                    continue
-                name = name[len(prefix):]
-            found.append((name, typed))
-    return found
-
-
-def _bind(component: SspComponent, variable: str, typed: ET.Element, where: str) -> None:
-    kind, value = _value(typed, where)
-    if variable not in component.variables:
-        raise SspError(f"{where}: the FMU {component.source} of component {component.name!r} "
-                       f"has no variable {variable!r}")
-    causality, typ = component.variables[variable]
-    if causality not in ("parameter", "input"):
-        raise SspError(f"{where}: {component.name}.{variable} has causality {causality!r}; "
-                       "a binding sets parameters and inputs")
-    if kind != typ and not (kind == "Integer" and typ == "Real"):
-        raise SspError(f"{where}: ssv:{kind} bound to {component.name}.{variable}, a {typ}")
-    component.start_values[variable] = float(value) if typ == "Real" else value
-
-
-def read_ssp(path: str | os.PathLike) -> SspSystem:
-    """Read and check an SSP archive (see the module docstring); nothing is extracted.
-
-    Raises
-    ------
-    SspError
-        Naming the archive and the SSD element of the first problem found.
-    """
-    path = Path(path)
-    archive = _Archive(path)
-    where = f"{path}: {_SSD}"
-    if _SSD not in archive.names:
-        raise SspError(f"{path}: the archive has no {_SSD}")
-    try:
-        root = ET.fromstring(archive.read(_SSD, where))
-    except ET.ParseError as exc:
-        raise SspError(f"{where}: not well-formed XML: {exc}") from exc
-    if root.tag != f"{{{_NS['ssd']}}}SystemStructureDescription":
-        raise SspError(f"{where}: the root element is not ssd:SystemStructureDescription")
-    system = root.find("ssd:System", _NS)
-    if system is None:
-        raise SspError(f"{where}: no ssd:System")
-    components: dict[str, SspComponent] = {}
-    for element in system.findall("ssd:Elements/*", _NS):
-        here = f"{where} {_tag(element)}"
-        if element.tag != f"{{{_NS['ssd']}}}Component":
-            raise SspError(f"{here}: only ssd:Component elements are supported (no nested "
-                           "systems or signal dictionaries)")
-        name, source = element.get("name"), element.get("source")
-        kind = element.get("type", _FMU_TYPE)
-        if kind != _FMU_TYPE:
-            raise SspError(f"{here}: type {kind!r} is not supported; supported: {_FMU_TYPE}")
-        if not name or not source:
-            raise SspError(f"{here}: a component needs a name and a source")
-        if name in components:
-            raise SspError(f"{here}: a second component named {name!r}")
-        member = archive.member(source)
-        if member is None:
-            raise SspError(f"{here}: the archive has no {source}")
-        component = SspComponent(name, member, _tag(element))
-        component.variables = _model_variables(archive.read(member, here), f"{here}: {member}")
-        for connector in element.findall("ssd:Connectors/ssd:Connector", _NS):
-            cname = connector.get("name")
-            at = f"{here} {_tag(connector)}"
-            if cname not in component.variables:
-                raise SspError(f"{at}: the FMU {member} has no variable {cname!r}")
-            typed = next((c for c in connector if c.tag.startswith(f"{{{_NS['ssc']}}}")), None)
-            if typed is not None:
-                declared = typed.tag.rsplit("}", 1)[-1]
-                if declared in _TYPES and declared != component.variables[cname][1]:
-                    raise SspError(f"{at}: declared ssc:{declared}, the FMU's variable is a "
-                                   f"{component.variables[cname][1]}")
-        for variable, typed in _bindings(archive, element, here):
-            _bind(component, variable, typed, f"{here} <ssv:Parameter name=\"{variable}\">")
-        components[name] = component
-    if not components:
-        raise SspError(f"{where}: the system has no component")
-    for name, typed in _bindings(archive, system, f"{where} {_tag(system)}"):
-        at = f"{where} {_tag(system)} <ssv:Parameter name=\"{name}\">"
-        owner, _, variable = name.partition(".")
-        if owner not in components or not variable:
-            raise SspError(f"{at}: a system binding names component.variable; components: "
-                           + ", ".join(components))
-        _bind(components[owner], variable, typed, at)
-    connections = []
-    for element in system.findall("ssd:Connections/ssd:Connection", _NS):
-        here = f"{where} {_tag(element)}"
-        ends = []
-        for side, want in (("start", ("output",)), ("end", ("input",))):
-            owner, connector = element.get(f"{side}Element"), element.get(f"{side}Connector")
-            if not owner:
-                raise SspError(f"{here}: connections to the system's own connectors are not "
-                               "supported")
-            if owner not in components:
-                raise SspError(f"{here}: no component named {owner!r}")
-            variables = components[owner].variables
-            if connector not in variables:
-                raise SspError(f"{here}: the FMU {components[owner].source} of component "
-                               f"{owner!r} has no variable {connector!r}")
-            if variables[connector][0] not in want:
-                raise SspError(f"{here}: {owner}.{connector} is a {variables[connector][0]}, "
-                               f"not an {want[0]}")
-            ends.append((owner, connector, variables[connector][1]))
-        if element.find("ssc:LinearTransformation", _NS) is not None or element.find(
-                "ssc:MapTransformation", _NS) is not None:
-            raise SspError(f"{here}: connection transformations are not supported")
-        (start, output, t_out), (end, input_, t_in) = ends
-        if t_out != t_in:
-            raise SspError(f"{here}: {start}.{output} is a {t_out}, {end}.{input_} a {t_in}: "
-                           "a connection joins variables of one type")
-        connections.append(SspConnection(start, output, end, input_, _tag(element)))
-    start_time, stop_time, step, step_source = 0.0, None, None, ""
-    experiment = root.find("ssd:DefaultExperiment", _NS)
-    if experiment is not None:
-        here = f"{where} <ssd:DefaultExperiment>"
-        if experiment.get("startTime") is not None:
-            start_time = _float(experiment.get("startTime"), here, "startTime")
-        if experiment.get("stopTime") is not None:
-            stop_time = _float(experiment.get("stopTime"), here, "stopTime")
-        osp = experiment.find(".//osp:FixedStepAlgorithm", _NS)
-        if osp is not None and osp.get("baseStepSize") is not None:
-            step = _float(osp.get("baseStepSize"), f"{here} <osp:FixedStepAlgorithm>",
-                          "baseStepSize")
-            step_source = "osp:FixedStepAlgorithm baseStepSize"
-    if step is None:
-        oms = system.find("ssd:Annotations//oms:FixedStepMaster", _NS)
-        if oms is not None and oms.get("stepSize") is not None:
-            step = _float(oms.get("stepSize"), f"{where} <oms:FixedStepMaster>", "stepSize")
-            step_source = "oms:FixedStepMaster stepSize"
-    return SspSystem(path, system.get("name") or root.get("name") or path.stem, components,
-                     connections, start_time, stop_time, step, step_source)
 
 
 @dataclass
@@ -470,7 +120,7 @@ def run_ssp(
             raise SspError(f"--variables {name}: a String variable cannot be recorded")
         watched.append((owner, variable))
     with tempfile.TemporaryDirectory(prefix="papwcssp") as tmp:
-        archive = _Archive(system.path)
+        archive = SspArchive(system.path)
         slaves: dict[str, FmuSlave] = {}
         execution = Execution(FixedStepAlgorithm(h, "delayed"), start_time=t0)
         try:
