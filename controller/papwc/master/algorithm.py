@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from papwc.errors import FmuError
 from papwc.master.slave import Slave
@@ -56,9 +57,8 @@ class FixedStepAlgorithm:
             raise FmuError(f"step size {step_size!r} s: must be > 0")
         self.step_size = float(step_size)
         self.timing = timing
-        self._plan: list = []
-        self._transfers: list[Callable[[], None]] = []
         self._after: Callable[[Slave], None] | None = None
+        self._step: Callable[[float], None] = lambda t: None
 
     def setup(
         self,
@@ -72,17 +72,35 @@ class FixedStepAlgorithm:
         manipulators act there).
         """
         self._after = after_step
-        plan: list[tuple[Slave, Callable[[float, float], None], Callable[[], None] | None]] = []
-        for slave in slaves:
+        namespace: dict[str, Any] = {"h": self.step_size, "after": after_step}
+        transfers: list[str] = []
+        steps: list[str] = []
+        for j, slave in enumerate(slaves):
             links = [c for c in connections if c.target is slave]
-            transfer = None
+            namespace[f"slave{j}"] = slave
+            namespace[f"do_step{j}"] = slave.do_step
+            lines: list[str] = []
             if links:
-                setter = slave.input_setter([c.input for c in links])
-                sources = [(c.source, c.source.watch([c.output])[0]) for c in links]
-                transfer = _transfer(sources, setter)
-            plan.append((slave, slave.do_step, transfer))
-        self._plan = plan
-        self._transfers = [transfer for _, _, transfer in plan if transfer is not None]
+                namespace[f"set{j}"] = slave.input_setter([c.input for c in links])
+                args = []
+                for i, c in enumerate(links):
+                    namespace[f"source{j}_{i}"] = c.source
+                    index = c.source.watch([c.output])[0]
+                    args.append(f"source{j}_{i}.values[{index}]")
+                lines.append(f"set{j}({', '.join(args)})")
+            transfers.append(lines)
+            steps.append([f"do_step{j}(t, h)"]
+                         + ([f"after(slave{j})"] if after_step is not None else []))
+        if self.timing == "immediate":
+            body = [line for tr, st in zip(transfers, steps, strict=True) for line in tr + st]
+        else:
+            body = [line for tr in transfers for line in tr] + [line for st in steps
+                                                                for line in st]
+        # One function made of the plan's statements, as dataclasses makes its methods:
+        # a step costs no loop over slaves and no test of what the plan holds.
+        source = "def step(t):\n" + "".join(f"    {line}\n" for line in body or ["pass"])
+        exec(source, namespace)  # noqa: S102 - the statements are made here, from indexes
+        self._step = namespace["step"]
 
     def step(self, t: float) -> None:
         """One communication step from ``t``: transfer, step every slave, call ``after_step``.
@@ -92,35 +110,11 @@ class FixedStepAlgorithm:
         FmuError
             From the slave whose step failed.
         """
-        h = self.step_size
-        after = self._after
-        if self.timing == "immediate":
-            for slave, do_step, transfer in self._plan:
-                if transfer is not None:
-                    transfer()
-                do_step(t, h)
-                if after is not None:
-                    after(slave)
-        else:
-            for transfer in self._transfers:
-                transfer()
-            for slave, do_step, _ in self._plan:
-                do_step(t, h)
-                if after is not None:
-                    after(slave)
+        self._step(t)
+
+    @property
+    def step_function(self) -> Callable[[float], None]:
+        """The prepared ``step(t)`` itself (what :meth:`step` calls), for a caller's loop."""
+        return self._step
 
 
-def _transfer(sources: list[tuple[Slave, int]], setter: Callable[..., None]) -> Callable[[], None]:
-    """A function that copies the sources' current values into the target's inputs."""
-    if len(sources) == 1:
-        (source, index), = sources
-
-        def transfer_one() -> None:
-            setter(source.values[index])
-
-        return transfer_one
-
-    def transfer() -> None:
-        setter(*[s.values[i] for s, i in sources])
-
-    return transfer

@@ -143,7 +143,7 @@ class Execution:
             When a slave's step fails; observers are told (``step_failed``) first,
             and ``k`` stays at the failed step.
         """
-        step = self.algorithm.step
+        step = self.algorithm.step_function
         complete = [o.step_complete for o in self.observers]
         t0, h = self.start_time, self.algorithm.step_size
         k = self.k
@@ -156,8 +156,9 @@ class Execution:
                 for o in self.observers:
                     o.step_failed(k, t)
                 raise
+            t_next = t0 + (k + 1) * h
             for step_complete in complete:
-                step_complete(k, t0 + (k + 1) * h)
+                step_complete(k, t_next)
         self.k = k + 1 if n > 0 else self.k
 
     def finish(self) -> None:
