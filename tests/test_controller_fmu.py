@@ -77,6 +77,8 @@ class Controller:
             self.fmu.setReal(vr, [float(value)])
         elif var.type == "Integer":
             self.fmu.setInteger(vr, [int(value)])
+        elif var.type == "Boolean":
+            self.fmu.setBoolean(vr, [bool(value)])
         else:
             self.fmu.setString(vr, [value])
 

@@ -158,6 +158,8 @@ def closed_loop_parameters(
             value = FMU_DEFAULT_SENTINEL
         if var.type == "Integer":
             controller[name] = int(value)
+        elif var.type == "Boolean":
+            controller[name] = bool(value)
         elif var.type == "String":
             controller[name] = str(value)
         elif not (var.inf_ok and math.isinf(value)):
@@ -233,6 +235,8 @@ def _ssd(
             parameter = ET.SubElement(params, "ssv:Parameter", name=name)
             if isinstance(value, str):
                 ET.SubElement(parameter, "ssv:String", value=value)
+            elif isinstance(value, bool):
+                ET.SubElement(parameter, "ssv:Boolean", value="true" if value else "false")
             elif isinstance(value, int):
                 ET.SubElement(parameter, "ssv:Integer", value=str(value))
             else:
