@@ -129,7 +129,8 @@ def test_ssd_is_valid_ssp_and_binds_the_scenario(closed_loop_ssp: Path, paper) -
         (binding,) = component.parameterBindings
         (parameter_set,) = binding.parameterValues
         bound = {p.name: p.value for p in parameter_set.parameters}
-        assert bound == {k: str(v) if isinstance(v, (int, str)) else repr(v)
+        assert bound == {k: str(v).lower() if isinstance(v, bool)
+                         else str(v) if isinstance(v, (int, str)) else repr(v)
                          for k, v in expected[name].items()}  # fmt: skip
     assert expected["controller"]["kind_code"] == 2  # "papwc"
     assert expected["controller"]["t_p_max"] == 0.03
@@ -207,6 +208,8 @@ def test_libcosim_controller_first_sees_the_plant_initial_output(
         for key, value in values[name].items():
             if isinstance(value, str):
                 assert execution.string_initial_value(index, vr[key], value)
+            elif isinstance(value, bool):
+                assert execution.boolean_initial_value(index, vr[key], value)
             elif isinstance(value, int):
                 assert execution.integer_initial_value(index, vr[key], value)
             else:

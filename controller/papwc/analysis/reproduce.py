@@ -10,7 +10,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from papwc.analysis import paper, plots  # noqa: E402
+from papwc.analysis import claims, paper, plots  # noqa: E402
 from papwc.errors import ScenarioError  # noqa: E402
 from papwc.master import RunResult, summarize  # noqa: E402
 from papwc.model.pulse import b_coulomb, pulse_displacement, pulse_width  # noqa: E402
@@ -106,8 +106,13 @@ def simulation_numbers(results: list[RunResult], p: dict[str, float] = paper.TAB
     return rows
 
 
-def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = None) -> int:
-    """Run the paper's scenario on FrictionPlant.fmu and write figures, tables and a report."""
+def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = None,
+              readings: bool = False, workers: int | None = None) -> int:
+    """Run the paper's scenario on FrictionPlant.fmu and write figures, tables and a report.
+
+    ``readings``: also search the readings of each claim the scenario does not
+    reproduce, in ``workers`` processes (see :mod:`papwc.analysis.claims`).
+    """
     path = Path(scenario_path) if scenario_path else scenario_file(DEFAULT_SCENARIO)
     if not path.is_file():
         raise ScenarioError(f"{path}: no such scenario file")
@@ -150,8 +155,10 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
     write_rows(out / "paper_numbers.csv",
                [{"quantity": q, "paper": p, "computed": v} for q, p, v in numbers],
                ["quantity", "paper", "computed"])
-    write_text(out / "report.md", _report(path, numbers, results + extra))
-    print(f"wrote {out}/fig1.png, fig3.png ... fig9.png, paper_numbers.csv, report.md, runs/")
+    claims_md = claims.write_claims(out, scenario, results, fmu, readings, workers)
+    write_text(out / "report.md", _report(path, numbers, results + extra) + "\n" + claims_md)
+    print(f"wrote {out}/fig1.png, fig3.png ... fig9.png, paper_numbers.csv, claims.csv, "
+          f"{'readings.csv, ' if readings else ''}report.md, runs/")
     failed = [r for r in results + extra if r.error]
     for r in failed:
         print(f"error: {r.label}: {r.error}")

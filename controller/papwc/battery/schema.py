@@ -12,6 +12,7 @@ from statistics import NormalDist
 
 from papwc.controllers.settings import ControllerSettings
 from papwc.errors import ScenarioError
+from papwc.model.settings import CONTROLLER_SETTINGS
 from papwc.scenario import (
     MANEUVER_FIELDS,
     PLANT_FIELDS,
@@ -20,9 +21,10 @@ from papwc.scenario import (
 )
 
 BATTERY_TABLES = ("sweep", "monte_carlo", "battery")
-#: Fields that cannot be drawn from a distribution (whole numbers or words).
+#: Fields that cannot be drawn from a distribution (whole numbers, switches or words).
 NOT_DRAWABLE = {"maneuver.iterations", "maneuver.noise_seed", "maneuver.timing",
-                "controller.rest_samples", "controller.kind", "controller.label"}
+                "controller.rest_samples", "controller.kind", "controller.label"} | {
+    f"controller.{v.name}" for v in CONTROLLER_SETTINGS if v.type != "Real"}
 DISTRIBUTIONS = {
     "uniform": (("rel",), ("abs",), ("low", "high")),
     "normal": (("std",), ("rel_std",), ("mean", "std")),
@@ -176,9 +178,9 @@ def parse_battery(data: dict, source: str) -> Battery:
             raise ScenarioError(f"{source}: [sweep] field {path!r} = {values!r}: must be a "
                                 "non-empty array of values")
         for v in values:
-            if not (is_number(v) or isinstance(v, str)):
+            if not (is_number(v) or isinstance(v, (str, bool))):
                 raise ScenarioError(f"{source}: [sweep] field {path!r}: value {v!r} must be "
-                                    "a number or a string")
+                                    "a number, a string, true or false")
         battery.sweep.append((path, list(values)))
 
     mc = data.get("monte_carlo")

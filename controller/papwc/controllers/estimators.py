@@ -24,6 +24,9 @@ class ScalarRls:
         Forgetting parameters of Eq. (8): 0 < lambda_1 <= 1, 0 <= lambda_2 < 2.
     b_bounds : (float, float)
         The estimate is kept inside this interval (m/s**2).
+    update_gain : bool
+        Update F^-1 by Eq. (8) (default); False keeps F^-1(0), so that Eq. (9)
+        runs with the fixed gain F(0).
     """
 
     def __init__(
@@ -33,6 +36,7 @@ class ScalarRls:
         lambda_1: float = 1.0,
         lambda_2: float = 1.0,
         b_bounds: tuple[float, float] = (0.0, math.inf),
+        update_gain: bool = True,
     ) -> None:
         self.b_hat = float(b0)
         self.F_inv = float(F_inv0)
@@ -40,6 +44,7 @@ class ScalarRls:
         self.lambda_2 = float(lambda_2)
         self.b_min = max(float(b_bounds[0]), 1e-300)
         self.b_max = float(b_bounds[1])
+        self.update_gain = bool(update_gain)
 
     def update(self, u_p: float, d: float) -> float:
         """Take one pulse (regressor u_p, s**2, signed; displacement d, m) into the estimate.
@@ -47,7 +52,9 @@ class ScalarRls:
         Returns the prediction error epsilon_0^0 of Eq. (7), m.
         """
         eps = d - self.b_hat * u_p  # Eq. (7)
-        F_inv = self.lambda_1 * self.F_inv + self.lambda_2 * u_p * u_p  # Eq. (8)
+        F_inv = self.F_inv
+        if self.update_gain:
+            F_inv = self.lambda_1 * F_inv + self.lambda_2 * u_p * u_p  # Eq. (8)
         if not (math.isfinite(F_inv) and F_inv > 0.0) or not math.isfinite(eps):
             return 0.0
         self.F_inv = F_inv
@@ -83,6 +90,9 @@ class Rls2:
         Forgetting factor lambda, 0 < lambda <= 1.
     a_bounds : ((float, float), (float, float))
         Bounds that A1 and A2 are projected into after each update.
+    update_covariance : bool
+        Update P by Eq. (14) (default); False keeps P(0), so that Eq. (15)
+        and (17) run with the fixed P(0).
     """
 
     def __init__(
@@ -94,12 +104,14 @@ class Rls2:
             (0.0, math.inf),
             (0.0, math.inf),
         ),
+        update_covariance: bool = True,
     ) -> None:
         self.a = [float(a0[0]), float(a0[1])]
         self.delta_inv = float(delta_inv)
         self.P = [[self.delta_inv, 0.0], [0.0, self.delta_inv]]
         self.lam = float(lam)
         self.bounds = [tuple(map(float, a_bounds[0])), tuple(map(float, a_bounds[1]))]
+        self.update_covariance = bool(update_covariance)
 
     def update(self, phi: tuple[float, float], d: float) -> float:
         """Take one observation (regressor phi, displacement d in m) into the estimate.
@@ -125,7 +137,9 @@ class Rls2:
         a1 = self.a[1] + k1 * xi
         if not all(math.isfinite(q) for q in (p00, p11, p01, a0, a1)):
             return 0.0
-        if p00 > 0.0 and p11 > 0.0 and p00 * p11 - p01 * p01 > 0.0:
+        if not self.update_covariance:
+            pass  # P stays P(0): Eq. (14) is not applied
+        elif p00 > 0.0 and p11 > 0.0 and p00 * p11 - p01 * p01 > 0.0:
             self.P = [[p00, p01], [p01, p11]]
         else:
             # Rounding has cost P its definiteness: restart the covariance.

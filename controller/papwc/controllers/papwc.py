@@ -6,7 +6,15 @@ import math
 
 from .base import Controller
 from .estimators import Rls2
+from .pwc import REGRESSOR_PLANNED
 from .settings import ControllerSettings
+
+#: ``floor_mode``: a pulse that did not move raises the floor and is not learned.
+FLOOR_RAISE = 0
+#: ``floor_mode``: it raises the floor and is learned with d = 0.
+FLOOR_RAISE_LEARN = 1
+#: ``floor_mode``: the floor stays ``f_p_min``; the pulse is learned with d = 0.
+FLOOR_LEARN = 2
 
 
 def papwc_amplitude(f_c: float, f_p: float, t_p: float, T_x: float) -> float:
@@ -45,10 +53,16 @@ class PapwcController(Controller):
     ``[f_p_floor, f_p_max]``. A1 and A2 are estimated by RLS, Eq. (13)-(17),
     with the regressor ``[f_p**2*t_p**2, -f_p*t_p**2]``.
 
-    A pulse that does not move the mass (its height was at or below the
-    stiction force) is not given to the estimator; the amplitude floor is raised
-    above it by the factor ``1 + floor_raise`` instead. An update that would give
-    ``A1 <= 0``, ``A2 <= 0`` or ``f_c_hat >= f_p_max`` is rejected.
+    The readings the paper leaves open are settings: the estimator is fed the
+    applied pulse (f_p*, n*T) or the planned one (f_p_max, t_p of Eq. (6)
+    bounded by t_p_max; ``regressor``); P is updated by Eq. (14) or kept at
+    P(0) (``update_covariance``); a pulse that does not move the mass (its
+    height was at or below the stiction force) raises the amplitude floor by the
+    factor ``1 + floor_raise`` above it and is not given to the estimator
+    (``floor_mode = 0``), raises the floor and is given to the estimator with
+    d = 0 (1), or leaves the floor at ``f_p_min`` and is given to the estimator
+    with d = 0 (2). An update that would give ``A1 <= 0``, ``A2 <= 0`` or
+    ``f_c_hat >= f_p_max`` is rejected.
     """
 
     kind = "papwc"
@@ -62,7 +76,11 @@ class PapwcController(Controller):
             delta_inv=settings.delta_inv,
             lam=settings.lam,
             a_bounds=((a1 * 1e-3, a1 * 1e3), (a2 * 1e-3, a2 * 1e3)),
+            update_covariance=settings.update_covariance,
         )
+        #: Height (N, > 0) and width (s) of the last pulse as planned at f_p_max by Eq. (6).
+        self.f_p_plan = settings.f_p_max
+        self.t_p_plan = 0.0
 
     @property
     def f_c_hat(self) -> float:
@@ -79,10 +97,13 @@ class PapwcController(Controller):
         f_max = self.settings.f_p_max
         f_c = self.f_c_hat
         b = self.b_hat(f_max)
+        self.f_p_plan = f_max
         if not (b > 0.0 and f_c > 0.0):
             # The estimates say f_p_max cannot move the mass: probe at full height.
+            self.t_p_plan = self.T
             return 1, math.copysign(f_max, e)
         t_p = math.sqrt(self.settings.K_c * abs(e) / b)  # Eq. (6)
+        self.t_p_plan = min(t_p, self.n_max * self.T)
         n = self.width_samples(t_p)
         T_x = n * self.T
         f_p = f_max if t_p >= T_x else papwc_amplitude(f_c, f_max, t_p, T_x)
@@ -90,15 +111,22 @@ class PapwcController(Controller):
         return n, math.copysign(f_p, e)
 
     def learn(self, n: int, f_p: float, d: float) -> None:
+        """Eq. (13)-(18) with the pulse's displacement ``d`` along its direction."""
         d_along = d if f_p > 0.0 else -d
         if not d_along > 0.0:
-            self.f_p_floor = min(
-                max(self.f_p_floor, abs(f_p) * (1.0 + self.settings.floor_raise)),
-                self.settings.f_p_max,
-            )
-            return
-        t2 = (n * self.T) ** 2
-        f = abs(f_p)
+            mode = int(self.settings.floor_mode)
+            if mode in (FLOOR_RAISE, FLOOR_RAISE_LEARN):
+                self.f_p_floor = min(
+                    max(self.f_p_floor, abs(f_p) * (1.0 + self.settings.floor_raise)),
+                    self.settings.f_p_max,
+                )
+            if mode == FLOOR_RAISE:
+                return
+            d_along = 0.0
+        if int(self.settings.regressor) == REGRESSOR_PLANNED:
+            f, t2 = self.f_p_plan, self.t_p_plan**2
+        else:
+            f, t2 = abs(f_p), (n * self.T) ** 2
         before = self.estimator.state()
         self.estimator.update((f * f * t2, -f * t2), d_along)
         a1, a2 = self.estimator.a
@@ -111,9 +139,11 @@ class PapwcController(Controller):
         return {"b_hat": self.b_hat(self.settings.f_p_max), "f_c_hat": self.f_c_hat}
 
     def state(self) -> list[float]:
-        return super().state() + self.estimator.state()
+        return super().state() + self.estimator.state() + [self.f_p_plan, self.t_p_plan]
 
     def set_state(self, values: list[float]) -> None:
         n = len(super().state())
+        m = len(self.estimator.state())
         super().set_state(values[:n])
-        self.estimator.set_state(values[n:])
+        self.estimator.set_state(values[n:n + m])
+        self.f_p_plan, self.t_p_plan = float(values[n + m]), float(values[n + m + 1])

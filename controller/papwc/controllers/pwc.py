@@ -9,6 +9,11 @@ from .base import Controller
 from .estimators import ScalarRls
 from .settings import ControllerSettings
 
+#: ``regressor`` setting: the estimator is fed the applied width (n*T).
+REGRESSOR_APPLIED = 0
+#: ``regressor`` setting: the estimator is fed the planned width t_p of Eq. (6).
+REGRESSOR_PLANNED = 1
+
 
 class PwcController(Controller):
     """Adaptive PWC: Eq. (4)-(9).
@@ -17,7 +22,9 @@ class PwcController(Controller):
     Eq. (6), ``t_p**2 = K_c*|e|/b_hat``, rounded up to whole samples (the ZOH
     can do nothing else) and bounded by ``t_p_max``. After each pulse b_hat is
     updated from the measured displacement with Eq. (7)-(9), using the width
-    that was actually applied.
+    that was actually applied (``regressor = 0``) or the width Eq. (6) planned,
+    bounded by ``t_p_max`` (``regressor = 1``: "the calculated pulse isn't the
+    real input pulse"). With ``update_covariance = false`` F^-1 keeps F^-1(0).
     """
 
     kind = "pwc"
@@ -31,18 +38,25 @@ class PwcController(Controller):
             lambda_1=settings.lambda_1,
             lambda_2=settings.lambda_2,
             b_bounds=(b0 * 1e-3, b0 * 1e3),
+            update_gain=settings.update_covariance,
         )
+        #: Width of the last pulse as Eq. (6) planned it, bounded by t_p_max, s.
+        self.t_p_plan = 0.0
 
     def plan_pulse(self, e: float) -> tuple[int, float]:
         """Eq. (6): ``u_p = K_c*e/b_hat``, ``t_p = sqrt(|u_p|)``, height ``f_p_max*sgn(e)``."""
         t_p = math.sqrt(self.settings.K_c * abs(e) / self.estimator.b_hat)
+        self.t_p_plan = min(t_p, self.n_max * self.T)
         return self.width_samples(t_p), math.copysign(self.settings.f_p_max, e)
 
     def learn(self, n: int, f_p: float, d: float) -> None:
-        """Eq. (7)-(9) with ``u_p = (n*T)**2 * sgn(f_p)``; a pulse that did not move is skipped."""
+        """Eq. (7)-(9) with ``u_p = t_p**2 * sgn(f_p)``; a pulse that did not move is skipped.
+
+        ``t_p`` is the applied width ``n*T`` or the planned one (setting ``regressor``).
+        """
         if d == 0.0:
             return
-        t_p = n * self.T
+        t_p = self.t_p_plan if int(self.settings.regressor) == REGRESSOR_PLANNED else n * self.T
         self.estimator.update(math.copysign(t_p * t_p, f_p), d)
 
     def estimates(self) -> dict[str, float]:
@@ -52,9 +66,11 @@ class PwcController(Controller):
         return {"b_hat": b, "f_c_hat": f_p * f_p / (2.0 * self.settings.m_est * b + f_p)}
 
     def state(self) -> list[float]:
-        return super().state() + self.estimator.state()
+        return super().state() + self.estimator.state() + [self.t_p_plan]
 
     def set_state(self, values: list[float]) -> None:
         n = len(super().state())
+        m = len(self.estimator.state())
         super().set_state(values[:n])
-        self.estimator.set_state(values[n:])
+        self.estimator.set_state(values[n:n + m])
+        self.t_p_plan = float(values[n + m])

@@ -181,6 +181,8 @@ def closed_loop_parameters(
             controller["kind_code"] = KIND_CODES.index(value) + 1
         elif var.type == "Integer":
             controller[name] = int(value)
+        elif var.type == "Boolean":
+            controller[name] = bool(value)
         elif var.type == "String":
             controller[name] = str(value)
         elif not (var.inf_ok and math.isinf(value)):
@@ -256,6 +258,8 @@ def _ssd(
             parameter = ET.SubElement(params, "ssv:Parameter", name=name)
             if isinstance(value, str):
                 ET.SubElement(parameter, "ssv:String", value=value)
+            elif isinstance(value, bool):
+                ET.SubElement(parameter, "ssv:Boolean", value="true" if value else "false")
             elif isinstance(value, int):
                 ET.SubElement(parameter, "ssv:Integer", value=str(value))
             else:

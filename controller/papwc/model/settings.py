@@ -51,16 +51,34 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("floor_raise", "Relative step by which the amplitude floor rises above an "
              "amplitude that did not move the mass", "1", 0.05, min=0.0, max=1.0,
              min_open=True),
-    Variable("F_inv0", "Initial inverse gain F^-1(0) of the PWC estimator, Eq. (8)", "s4",
+    Variable("F_inv0", "Initial inverse gain F^-1(0) of the PWC estimator, Eq. (8) (the "
+             "paper: 1e-5, so F(0) = 1e5)", "s4",
              1e-5, min=0.0, min_open=True, kinds=("pwc",)),
     Variable("lambda_1", "Forgetting parameter lambda_1 of Eq. (8)", "1", 1.0, min=0.0,
              max=1.0, min_open=True, note="(Eq. (8))", kinds=("pwc",)),
     Variable("lambda_2", "Forgetting parameter lambda_2 of Eq. (8)", "1", 1.0, min=0.0,
              max=2.0, max_open=True, note="(Eq. (8))", kinds=("pwc",)),
-    Variable("delta_inv", "P(0) = delta_inv*I of the PAPWC estimator, Eq. (13)-(17)", "1",
+    Variable("delta_inv", "P(0) = delta_inv*I of the PAPWC estimator, Eq. (13)-(17) (the "
+             "paper: delta^-1 = 1e-5; its advice 'delta small without noise' reads as 1e5, "
+             "P(0) = F(0))", "1",
              1e-5, min=0.0, min_open=True, kinds=("papwc",)),
     Variable("lambda", "Forgetting factor lambda of Eq. (14)-(15)", "1", 1.0, min=0.0,
              max=1.0, min_open=True, attr="lam", kinds=("papwc",)),
+    Variable("regressor", "Pulse the estimator is fed, a reading the paper leaves open: 0 "
+             "the applied pulse (u_p = (n*T)**2, Eq. (7)-(9); PAPWC u of Eq. (18) with the "
+             "applied height f_p* and width T_x = n*T), 1 the planned pulse (t_p of Eq. (6), "
+             "at most t_p_max in whole samples; PAPWC Eq. (18) as printed, at f_p_max)", "", 0,
+             type="Integer", min=0, max=1, note="(0 applied, 1 planned)",
+             kinds=("pwc", "papwc")),
+    Variable("update_covariance", "Update F^-1 by Eq. (8) (PWC) and P by Eq. (14) (PAPWC) "
+             "after each pulse; false keeps F^-1(0) and P(0) (the paper's runs 'without "
+             "updating the inverse covariance matrix')", "", True, type="Boolean",
+             kinds=("pwc", "papwc")),
+    Variable("floor_mode", "PAPWC pulse that did not move the mass (height at or below "
+             "f_s, Eq. (20)): 0 the amplitude floor rises floor_raise above it and the "
+             "estimator skips it; 1 the floor rises and Eq. (13)-(17) take d = 0; 2 the floor "
+             "stays f_p_min and Eq. (13)-(17) take d = 0", "", 0, type="Integer", min=0, max=2,
+             note="(0 raise, 1 raise and learn d = 0, 2 learn d = 0)", kinds=("papwc",)),
     Variable("e_band", "Error band inside which the mass at rest is handed over from the "
              "coarse feedback to pulse mode, > tolerance", "m", 0.02, min=0.0, min_open=True),
     Variable("k_p", "Proportional gain of the coarse feedback; default m_est*(10 rad/s)**2",

@@ -143,6 +143,9 @@ class Variable:
         lo, hi = self.min, self.max
         if self.type == "Integer":
             text = "a whole number"
+            if lo is not None and hi is not None:
+                return (f"{text} {_num(lo)} {'<' if self.min_open else '<='} {self.name} "
+                        f"{'<' if self.max_open else '<='} {_num(hi)}")
             if lo is not None:
                 text += f" {'>' if self.min_open else '>='} {_num(lo)}"
             if hi is not None:
