@@ -26,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output folder (default: results/reproduce)")
     parser.add_argument("--scenario", default=None, metavar="FILE",
                         help="scenario file (default: the shipped scenarios/paper.toml)")
-add_fmu_option(parser)
+    add_fmu_option(parser)
     parser.add_argument("--readings", action="store_true",
                         help="search the readings the paper leaves open for each claim that "
                              "the scenario's settings do not reproduce (writes readings.csv)")
