@@ -76,7 +76,8 @@ def test_one_parameter_set_of_types_every_reader_applies(ssp: Path, paper) -> No
     sets = root.findall(".//ssd:ParameterBinding/ssd:ParameterValues/ssv:ParameterSet", NS)
     assert len(sets) == 2 and {s.get("name") for s in sets} == {PARAMETER_SET}
     types = {typed.tag.rsplit("}", 1)[1] for typed in root.findall(".//ssv:Parameter/*", NS)}
-    assert types == {"Real", "Integer"}  # no ssv:String: fmpy and OMSimulator cannot set one
+    # no ssv:String: fmpy and OMSimulator cannot set one (Booleans: every reader applies them)
+    assert types == {"Real", "Integer", "Boolean"}
     bound = {(c.get("name"), p.get("name")): p[0].get("value")
              for c in root.findall(".//ssd:Component", NS)
              for p in c.findall(".//ssv:Parameter", NS)}
