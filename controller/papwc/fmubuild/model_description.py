@@ -199,7 +199,7 @@ def complete_model_description(
             if var.min is not None and not var.optional:
                 typed.set("min", xml_number(float(var.min) if var.type == "Real"
                                             else int(var.min)))
-            if var.max is not None:
+            if var.max is not None and not var.inf_ok:
                 typed.set("max", xml_number(float(var.max) if var.type == "Real"
                                             else int(var.max)))
         if var.type == "Real" and var.nominal is not None:
