@@ -19,3 +19,13 @@ class BuildError(PapwcError, RuntimeError):
 
 class BatteryError(PapwcError):
     """A battery cannot run: its output folder, journal, FMU or cluster is not usable."""
+
+
+class OutputError(PapwcError, OSError):
+    """A result could not be written (a read-only or full disk, a file in the way).
+
+    The message names the path and the operation; what was written before stays.
+    The command line exits with code 1 (a failure while running, not bad input).
+    """
+
+    exit_code = 1

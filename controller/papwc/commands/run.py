@@ -24,18 +24,57 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="plant FMU (default: one built from the current sources: the "
                              "checkout's build/FrictionPlant.fmu if current, else built "
                              "into DIR/fmu/)")
+    add_max_steps(parser)
+
+
+def add_max_steps(parser: argparse.ArgumentParser) -> None:
+    """The option ``--max-steps`` (shared with ``papwc battery``)."""
+    from papwc.limits import MAX_STEPS
+
+    parser.add_argument("--max-steps", type=positive_int, default=MAX_STEPS, metavar="N",
+                        help="refuse a run of more than N communication steps (all "
+                             f"controllers and iterations; default {MAX_STEPS})")
+
+
+def positive_int(text: str) -> int:
+    """An argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text} must be >= 1")
+    return value
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the scenario; return 0, or 1 if a controller's run failed."""
-    from papwc.runner import ensure_plant_fmu, format_table, run_scenario, write_results
+    import sys
+
+    from papwc.limits import check_steps
+    from papwc.runner import (
+        ResultsFolder,
+        ensure_plant_fmu,
+        format_table,
+        run_into_folder,
+        run_scenario,
+    )
     from papwc.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
+    m = scenario.maneuver
+    check_steps(str(args.scenario), len(scenario.controllers), m.iterations, m.duration, m.T,
+                args.max_steps)
+    for label, message in scenario.warnings:
+        print(f"papwc run: warning: {scenario.source}: {label}: {message}", file=sys.stderr)
     out = Path(args.out) if args.out else Path("results") / scenario.name
+    warnings = {label: scenario.warnings_of(label) for label in scenario.labels}
     fmu = ensure_plant_fmu(args.fmu, out) if args.plant == "fmu" else None
-    results = run_scenario(scenario, args.plant, fmu)
-    rows = write_results(results, out)
+    folder = ResultsFolder(out, scenario.labels, warnings)
+    folder.start()
+    results = run_into_folder(folder, lambda progress: run_scenario(
+        scenario, args.plant, fmu, progress=progress))
+    rows = run_into_folder(folder, lambda progress: folder.finish())
     print(format_table(rows))
     print(f"wrote {out / 'summary.csv'}, {len(rows)} rows, traces and plots in {out}")
     failed = [r for r in results if r.error]
