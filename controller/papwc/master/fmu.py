@@ -10,6 +10,7 @@ or another tool's.
 
 from __future__ import annotations
 
+import itertools
 import os
 import shutil
 import tempfile
@@ -50,6 +51,44 @@ def _text(value: Any) -> str:
     return str(value)
 
 
+#: The log of every open instance, by the componentEnvironment it was instantiated with.
+_LOGS: dict[int, deque] = {}
+_ENVIRONMENTS = itertools.count(1)
+_DISPATCH: list[Any] = []
+
+
+def log_message(environment: Any, instance_name: Any, status: Any, category: Any,
+                message: Any) -> None:
+    """The fmi2CallbackLogger of every FmuSlave: append to the log of the instance.
+
+    fmpy's proxy (which formats the message with its arguments) keeps one logger
+    for the whole process, so every instance is given this one function and its
+    own ``componentEnvironment``, by which the message reaches its log. Any
+    argument may be NULL; nothing here raises into the FMU.
+    """
+    try:
+        try:
+            code = int(status)
+        except (TypeError, ValueError):
+            code = -1
+        label = _STATUS[code] if 0 <= code < len(_STATUS) else f"status {status!r}"
+        text = f"[{label}] {_text(category)}: {_text(message)}"
+        log = _LOGS.get(environment if isinstance(environment, int) else 0)
+        if log is not None:
+            log.append(text)
+    except Exception:  # noqa: BLE001 - an exception must not cross into the FMU's C code
+        pass
+
+
+def _dispatcher():
+    """The C function pointer of :func:`log_message` (made once)."""
+    if not _DISPATCH:
+        from fmpy.fmi2 import fmi2CallbackLoggerTYPE
+
+        _DISPATCH.append(fmi2CallbackLoggerTYPE(log_message))
+    return _DISPATCH[0]
+
+
 class FmuSlave:
     """One instance of an FMI 2.0 Co-Simulation FMU.
 
@@ -78,6 +117,9 @@ class FmuSlave:
         increments it instead of restoring the initial state.
     """
 
+    #: Instances that returned fmi2Fatal, kept so that nothing frees them.
+    _keep_dead: list[Any] = []
+
     def __init__(
         self,
         fmu_path: str | os.PathLike,
@@ -97,6 +139,7 @@ class FmuSlave:
         self._start: dict[str, Any] = {}
         self._watched: list[str] = []
         self._owns_dir = False
+        self._fatal = False
         if not self.fmu_path.is_file():
             raise FmuError(f"FMU file {str(self.fmu_path)!r} does not exist")
         try:
@@ -135,21 +178,20 @@ class FmuSlave:
             fmi2CallbackAllocateMemoryTYPE,
             fmi2CallbackFreeMemoryTYPE,
             fmi2CallbackFunctions,
-            fmi2CallbackLoggerTYPE,
         )
         from fmpy.logging import addLoggerProxy
 
-        def logger(component, instance_name, status, category, message) -> None:
-            label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
-            self.log.append(f"[{label}] {_text(category)}: {_text(message)}")
-
+        self._environment = next(_ENVIRONMENTS)
+        _LOGS[self._environment] = self.log
         callbacks = fmi2CallbackFunctions()
-        callbacks.logger = fmi2CallbackLoggerTYPE(logger)
+        callbacks.logger = _dispatcher()
         callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        callbacks.componentEnvironment = self._environment
         addLoggerProxy(byref(callbacks))
+        # The FMU keeps a pointer to this structure until fmi2FreeInstance.
         self._callbacks = callbacks
-        self._logger = logger
+        self._logger = log_message
         self._fmu = FMU2Slave(
             guid=self.md.guid,
             unzipDirectory=self.unzip_dir,
@@ -190,6 +232,11 @@ class FmuSlave:
             raise FmuError(f"{self.name}: {name} at t = {self.time!r} s failed: {exc}") from exc
 
     def _failure(self, name: str, status: Any) -> str:
+        if status == "Fatal":
+            # FMI 2.0: after fmi2Fatal no function of the instance may be called, not
+            # even fmi2FreeInstance (pythonfmu 0.7.0 has then released the Python
+            # instance; freeing it again would release it twice).
+            self._fatal = True
         log = "; ".join(list(self.log)[-5:]) or "(the FMU logged nothing)"
         return (f"{self.name}: {name} at t = {self.time!r} s returned {status}; "
                 f"FMU log: {log}")
@@ -389,9 +436,14 @@ class FmuSlave:
             self._call("fmi2FreeFMUstate", lambda: self._fmu.freeFMUstate(snapshot))
 
     def close(self) -> None:
-        """Free the state taken, terminate, free the instance, remove the extracted copy."""
+        """Free the state taken, terminate, free the instance, remove the extracted copy.
+
+        After an fmi2Fatal nothing is called: the instance is left as it is.
+        """
         fmu, self._fmu = self._fmu, None
-        if fmu is not None:
+        if fmu is not None and getattr(self, "_fatal", False):
+            self._keep_dead.append(fmu)
+        elif fmu is not None:
             try:
                 if self._snapshot is not None:
                     fmu.freeFMUstate(self._snapshot)
@@ -403,6 +455,7 @@ class FmuSlave:
                 fmu.freeInstance()
             except Exception:  # noqa: BLE001
                 pass
+        _LOGS.pop(getattr(self, "_environment", None), None)
         if self._owns_dir:
             shutil.rmtree(self.unzip_dir, ignore_errors=True)
             self._owns_dir = False
