@@ -12,11 +12,14 @@ run wrote there (``summary.csv``, ``trace_*_it*.csv``, the plots,
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import re
+import signal
+import threading
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 
 from papwc.errors import FmuError
@@ -52,19 +55,62 @@ class RunTimeout(Exception):
 
 #: Communication steps between two looks at the clock of a run with a time limit.
 _CLOCK_EVERY = 256
+#: Set by Ctrl-C while :func:`deferred_interrupt` is active.
+_INTERRUPT = {"requested": False}
 
 
-def _with_deadline(slave, deadline: float, limit: float):
-    """Make ``slave.do_step`` raise :class:`RunTimeout` once ``time.monotonic() > deadline``."""
+@contextlib.contextmanager
+def deferred_interrupt() -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt between two communication steps, not inside an FMU.
+
+    An FMU made with pythonfmu runs its Python code in this interpreter: a
+    KeyboardInterrupt raised there becomes fmi2Fatal (the instance is lost and
+    the run goes on with the next controller). Within this block the first
+    Ctrl-C only sets a flag, which the plant's step checks (see
+    :func:`run_scenario`); a second one raises at once. Outside the main thread,
+    or where Ctrl-C is ignored (battery workers), nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread() or (
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield
+        return
+
+    def handler(signum, frame) -> None:
+        if _INTERRUPT["requested"]:
+            raise KeyboardInterrupt
+        _INTERRUPT["requested"] = True
+
+    _INTERRUPT["requested"] = False
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+        if _INTERRUPT["requested"]:
+            raise KeyboardInterrupt
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        _INTERRUPT["requested"] = False
+
+
+def _guard_steps(slave, deadline: float | None, limit: float | None):
+    """Make ``slave.do_step`` raise after a deferred Ctrl-C, and past ``deadline``.
+
+    Raises KeyboardInterrupt (Ctrl-C, checked every step) or :class:`RunTimeout`
+    (``time.monotonic() > deadline``, checked every ``_CLOCK_EVERY`` steps),
+    always between two steps.
+    """
     do_step = slave.do_step
     count = [0]
+    interrupt = _INTERRUPT
 
     def checked_step(t: float, h: float) -> None:
         do_step(t, h)
-        count[0] += 1
-        if count[0] % _CLOCK_EVERY == 0 and time.monotonic() > deadline:
-            raise RunTimeout(f"timed out: the run took longer than {limit:g} s "
-                             f"(stopped at t = {t + h!r} s)")
+        if interrupt["requested"]:
+            raise KeyboardInterrupt
+        if deadline is not None:
+            count[0] += 1
+            if count[0] % _CLOCK_EVERY == 0 and time.monotonic() > deadline:
+                raise RunTimeout(f"timed out: the run took longer than {limit:g} s "
+                                 f"(stopped at t = {t + h!r} s)")
 
     slave.do_step = checked_step
     return slave
@@ -90,20 +136,21 @@ def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike 
     ``fmu`` is the plant FMU's path when ``plant`` is ``"fmu"`` (and
     ``unzip_dir`` an extracted copy of it, if there is one); ``progress`` is
     called with each controller's result as it finishes. With ``timeout`` (s),
-    :class:`RunTimeout` is raised once the whole run has taken longer.
+    :class:`RunTimeout` is raised once the whole run has taken longer. Ctrl-C
+    raises KeyboardInterrupt between two steps (:func:`deferred_interrupt`).
     """
     results = []
     deadline = None if timeout is None else time.monotonic() + timeout
-    for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
-        slave = make_plant(scenario, plant, fmu, unzip_dir)
-        if deadline is not None:
-            _with_deadline(slave, deadline, timeout)
-        try:
-            results.append(run_controller(slave, settings, scenario.maneuver, label))
-        finally:
-            slave.close()
-        if progress is not None:
-            progress(results[-1])
+    with deferred_interrupt():
+        for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
+            slave = make_plant(scenario, plant, fmu, unzip_dir)
+            _guard_steps(slave, deadline, timeout)
+            try:
+                results.append(run_controller(slave, settings, scenario.maneuver, label))
+            finally:
+                slave.close()
+            if progress is not None:
+                progress(results[-1])
     return results
 
 

@@ -215,3 +215,29 @@ def test_a_scheduler_that_is_not_an_address_is_a_named_error(tmp_path: Path, cap
     assert one_line(capsys.readouterr().err) == (
         "papwc battery: error: --scheduler 'notaurl': not a Dask scheduler address; write "
         "tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786)")
+
+
+def test_ctrl_c_is_raised_between_two_steps_not_inside_the_plant(monkeypatch) -> None:
+    """A KeyboardInterrupt inside a pythonfmu FMU's code would become fmi2Fatal."""
+    import signal
+
+    from papwc.master import PhysicsSlave
+
+    inside: list[bool] = []
+
+    class Plant(PhysicsSlave):
+        def do_step(self, t: float, h: float) -> None:
+            if len(inside) == 3:
+                os.kill(os.getpid(), signal.SIGINT)  # arrives "inside the FMU"
+            inside.append(True)
+            super().do_step(t, h)  # completes: no exception in here
+            inside[-1] = False
+
+    monkeypatch.setattr(papwc.runner, "make_plant", lambda *a, **k: Plant())
+    from papwc.scenario import parse_scenario
+
+    scenario = parse_scenario({"name": "x", "controller": [{"kind": "papwc"}]}, "x.toml")
+    with pytest.raises(KeyboardInterrupt):
+        papwc.runner.run_scenario(scenario, "physics")
+    assert len(inside) == 4 and not any(inside)
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
