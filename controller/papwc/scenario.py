@@ -116,6 +116,8 @@ def read_toml(path: str | os.PathLike, what: str = "scenario") -> dict:
         not readable, or not valid TOML.
     """
     problem = input_path_problem(Path(path))
+    if problem == "no such file":
+        raise ScenarioError(f"{path}: no such {what} file")
     if problem is not None:
         raise ScenarioError(f"{path}: {problem}; give a {what} file (TOML)")
     try:

@@ -175,7 +175,7 @@ def test_a_full_stdout_is_one_line_not_a_traceback(tmp_path: Path) -> None:
     (lambda p: p.write_bytes(b"name = 'x'\n# caf\xe9\n"), "not UTF-8 text: byte 0xe9 at "
                                                          "line 2"),
     (lambda p: p.write_bytes(b"# " + b"x" * (17 * 1024 * 1024)), "larger than 16 MB"),
-    (lambda p: None, "no such file"),
+    (lambda p: None, "no such scenario file"),
 ])
 def test_input_files_that_are_not_toml_text_are_refused_by_name(
         tmp_path: Path, capsys, make, words) -> None:

@@ -9,6 +9,13 @@ HELP = "run a scenario file (TOML) and write summary.csv, traces and plots"
 EPILOG = """examples:
   papwc run scenarios/paper.toml --out results/paper
   papwc run scenarios/long_move.toml --plant physics
+
+each controller's traces and summary rows are written as it finishes; until
+everything is written (and after Ctrl-C or an error) DIR holds a file
+INCOMPLETE saying what is missing. A new run into DIR first removes what an
+earlier run wrote there (summary.csv, trace_*_it*.csv, the plots), nothing else.
+exit code: 0 ok, 1 a controller's run failed or a file cannot be written,
+2 the scenario file or an option is wrong, 130 interrupted (Ctrl-C).
 """
 
 
