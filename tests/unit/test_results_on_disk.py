@@ -241,3 +241,19 @@ def test_ctrl_c_is_raised_between_two_steps_not_inside_the_plant(monkeypatch) ->
         papwc.runner.run_scenario(scenario, "physics")
     assert len(inside) == 4 and not any(inside)
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_a_worker_count_beyond_the_cores_is_a_named_error(tmp_path: Path, capsys) -> None:
+    code = main(["battery", str(scenario_file(tmp_path)), "--workers", "100000"])
+    assert code == 2
+    assert "papwc battery: error: --workers 100000: must be from 1 to" in capsys.readouterr().err
+
+
+def test_max_runs_is_checked_from_the_command_line(tmp_path: Path, capsys) -> None:
+    path = tmp_path / "b.toml"
+    path.write_text(SCENARIO.format(iterations=1) + '[monte_carlo]\nn = 50\n'
+                    '"plant.m" = { dist = "uniform", rel = 0.1 }\n')
+    code = main(["battery", str(path), "--max-runs", "20", "--out", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert code == 2 and "= 50 runs, over the limit of 20 runs; pass --max-runs 50" in err
+    assert not (tmp_path / "out").exists()  # refused before the FMU is built

@@ -87,6 +87,9 @@ def run(args: argparse.Namespace) -> int:
         raise BatteryError(f"--scheduler {args.scheduler!r}: not a Dask scheduler address; "
                            "write tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786)")
     batteries = [load_battery(f) for f in args.files]
+    from papwc.battery.plan import check_size
+
+    check_size(batteries, args.max_runs)
     out = args.out
     if out is None:
         out = Path("results") / (batteries[0].name if len(batteries) == 1 else "battery")
