@@ -14,11 +14,13 @@ has the same GUID, so its finished runs are kept.
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import json
 import math
 import os
-from collections.abc import Mapping
+import signal
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 from papwc.errors import BatteryError, OutputError
@@ -139,6 +141,20 @@ def read_journal(path: Path, warnings: list[str] | None = None, strict: bool = F
     if warnings is not None and skipped > _WARNINGS_KEPT:
         warnings.append(f"{path}: {skipped - _WARNINGS_KEPT} more lines skipped")
     return header, records, good
+
+
+@contextlib.contextmanager
+def _ctrl_c_held() -> Iterator[None]:
+    """Block SIGINT in this thread for the block; a Ctrl-C meanwhile arrives after it."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None:
+        yield
+        return
+    old = mask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, old)
 
 
 def _os_error(path: Path, operation: str, exc: OSError) -> OutputError:
@@ -265,14 +281,20 @@ class Journal:
         return True
 
     def append(self, record: dict) -> None:
-        """Persist one record (flush and fsync) and keep it."""
-        try:
-            self._file.write(json.dumps(record) + "\n")
-            self._file.flush()
-            os.fsync(self._file.fileno())
-        except OSError as exc:
-            raise _os_error(self.path, "append to the journal", exc) from exc
-        self.records[(record["battery"], record["run_id"])] = record
+        """Persist one record (flush and fsync) and keep it.
+
+        Ctrl-C is held back while the record is written, so that it is never
+        half written nor written but not counted.
+        """
+        line = json.dumps(record) + "\n"
+        with _ctrl_c_held():
+            try:
+                self._file.write(line)
+                self._file.flush()
+                os.fsync(self._file.fileno())
+            except OSError as exc:
+                raise _os_error(self.path, "append to the journal", exc) from exc
+            self.records[(record["battery"], record["run_id"])] = record
 
     def close(self) -> None:
         self._file.close()
