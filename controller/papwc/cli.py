@@ -36,16 +36,108 @@ def make_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point of the ``papwc`` console script; returns the exit code."""
+    """Entry point of the ``papwc`` console script; returns the exit code.
+
+    Exit codes: 0 success; 1 a run failed, or an operating-system error (one
+    line naming the path and the operation; what was written stays); 2 bad
+    input (a file, a field, an option); 130 interrupted (Ctrl-C).
+    """
     args = make_parser().parse_args(argv)
+    name = f"papwc {args.command}"
+    stdout = sys.stdout
+    if stdout is not None:
+        sys.stdout = _Stdout(stdout)
     try:
-        return int(args._run(args) or 0)
+        code = int(args._run(args) or 0)
+        if sys.stdout is not None:
+            sys.stdout.flush()
+        return code
     except PapwcError as exc:
-        print(f"papwc {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        _error(name, str(exc))
+        return getattr(exc, "exit_code", 2)
     except KeyboardInterrupt:
-        print(f"papwc {args.command}: interrupted", file=sys.stderr)
+        _error(name, "interrupted", prefix="")
         return 130
+    except OSError as exc:
+        if _is_stdout_error(exc):
+            _silence_stdout(stdout)
+            _error(name, f"cannot write to standard output: {exc.strerror or exc}")
+        else:
+            _error(name, describe_os_error(exc))
+        return 1
+    except MemoryError:
+        _error(name, "out of memory; lower the work asked for (e.g. --max-steps, --max-runs, "
+                     "--workers)")
+        return 1
+    finally:
+        if isinstance(sys.stdout, _Stdout):
+            sys.stdout = stdout
+
+
+class _StdoutError(OSError):
+    """Writing standard output failed (a closed pipe, a full device)."""
+
+
+class _Stdout:
+    """Standard output whose write errors are told apart from other OSErrors."""
+
+    def __init__(self, stream) -> None:
+        self._stream = stream
+
+    def write(self, text: str) -> int:
+        try:
+            return self._stream.write(text)
+        except OSError as exc:
+            raise _StdoutError(exc.errno, exc.strerror) from exc
+
+    def flush(self) -> None:
+        try:
+            self._stream.flush()
+        except OSError as exc:
+            raise _StdoutError(exc.errno, exc.strerror) from exc
+
+    def __getattr__(self, name: str):
+        return getattr(self._stream, name)
+
+
+def _error(name: str, text: str, prefix: str = "error: ") -> None:
+    if sys.stderr is not None:
+        try:
+            print(f"{name}: {prefix}{text}", file=sys.stderr)
+        except OSError:
+            pass
+
+
+def _is_stdout_error(exc: OSError) -> bool:
+    """Whether ``exc`` came from writing standard output (closed pipe, full device)."""
+    return isinstance(exc, _StdoutError)
+
+
+def _silence_stdout(stream) -> None:
+    """Point the file of ``stream`` to the null device, so that nothing fails at exit."""
+    import os
+
+    try:
+        null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(null, stream.fileno())
+        os.close(null)
+    except (OSError, AttributeError, ValueError):
+        pass
+
+
+def describe_os_error(exc: OSError) -> str:
+    """An operating-system error in one line: the operation, the path(s), the reason."""
+    import traceback
+
+    frames = traceback.extract_tb(exc.__traceback__)
+    operation = frames[-1].name if frames else "operation"
+    reason = exc.strerror or str(exc) or type(exc).__name__
+    if exc.filename is None:
+        return f"{operation}: {reason}"
+    paths = repr(str(exc.filename))
+    if exc.filename2 is not None:
+        paths += f" -> {str(exc.filename2)!r}"
+    return f"{operation} {paths}: {reason}"
 
 
 if __name__ == "__main__":

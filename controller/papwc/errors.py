@@ -23,3 +23,13 @@ class BatteryError(PapwcError):
 
 class SspError(PapwcError, ValueError):
     """An SSP archive cannot be run; the message names the archive and the SSD element."""
+
+
+class OutputError(PapwcError, OSError):
+    """A result could not be written (a read-only or full disk, a file in the way).
+
+    The message names the path and the operation; what was written before stays.
+    The command line exits with code 1 (a failure while running, not bad input).
+    """
+
+    exit_code = 1

@@ -1,15 +1,30 @@
-"""Run a scenario's controllers against the plant and write what ``papwc run`` writes."""
+"""Run a scenario's controllers against the plant and write what ``papwc run`` writes.
+
+Results are on disk as soon as they exist: :class:`ResultsFolder` writes each
+controller's traces, then its rows of ``summary.csv``, as the controller
+finishes (every file atomically), and the plots at the end. While a run is
+under way, and after one that was interrupted or failed, the folder holds a
+file ``INCOMPLETE`` that says what is missing; it is removed once everything
+is written. A new run into a used folder first removes the files an earlier
+run wrote there (``summary.csv``, ``trace_*_it*.csv``, the plots,
+``INCOMPLETE``), nothing else.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
-from collections.abc import Callable
+import re
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 
 from papwc.errors import FmuError
 from papwc.master import FmuSlave, PhysicsSlave, RunResult, Slave, run_controller, summarize
-from papwc.output import write_rows
+from papwc.output import make_folder, remove_file, write_rows, write_text
 from papwc.scenario import Scenario
 
 SUMMARY_COLUMNS = [
@@ -26,11 +41,79 @@ def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> P
     if fmu is not None:
         path = Path(fmu)
         if not path.is_file():
-            raise FmuError(f"plant FMU {str(path)!r} does not exist")
+            what = "is not a file" if path.exists() else "does not exist"
+            raise FmuError(f"plant FMU {str(path)!r} {what}")
         return path
     from papwc.fmubuild.fmus import current_fmu
 
     return current_fmu("FrictionPlant", Path(out) / "fmu")
+
+
+class RunTimeout(Exception):
+    """A run went past its time limit (raised between two communication steps)."""
+
+
+#: Communication steps between two looks at the clock of a run with a time limit.
+_CLOCK_EVERY = 256
+#: Set by Ctrl-C while :func:`deferred_interrupt` is active.
+_INTERRUPT = {"requested": False}
+
+
+@contextlib.contextmanager
+def deferred_interrupt() -> Iterator[None]:
+    """Ctrl-C raises KeyboardInterrupt between two communication steps, not inside an FMU.
+
+    An FMU made with pythonfmu runs its Python code in this interpreter: a
+    KeyboardInterrupt raised there becomes fmi2Fatal (the instance is lost and
+    the run goes on with the next controller). Within this block the first
+    Ctrl-C only sets a flag, which the plant's step checks (see
+    :func:`run_scenario`); a second one raises at once. Outside the main thread,
+    or where Ctrl-C is ignored (battery workers), nothing changes.
+    """
+    if threading.current_thread() is not threading.main_thread() or (
+            signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield
+        return
+
+    def handler(signum, frame) -> None:
+        if _INTERRUPT["requested"]:
+            raise KeyboardInterrupt
+        _INTERRUPT["requested"] = True
+
+    _INTERRUPT["requested"] = False
+    signal.signal(signal.SIGINT, handler)
+    try:
+        yield
+        if _INTERRUPT["requested"]:
+            raise KeyboardInterrupt
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        _INTERRUPT["requested"] = False
+
+
+def _guard_steps(slave, deadline: float | None, limit: float | None):
+    """Make ``slave.do_step`` raise after a deferred Ctrl-C, and past ``deadline``.
+
+    Raises KeyboardInterrupt (Ctrl-C, checked every step) or :class:`RunTimeout`
+    (``time.monotonic() > deadline``, checked every ``_CLOCK_EVERY`` steps),
+    always between two steps.
+    """
+    do_step = slave.do_step
+    count = [0]
+    interrupt = _INTERRUPT
+
+    def checked_step(t: float, h: float) -> None:
+        do_step(t, h)
+        if interrupt["requested"]:
+            raise KeyboardInterrupt
+        if deadline is not None:
+            count[0] += 1
+            if count[0] % _CLOCK_EVERY == 0 and time.monotonic() > deadline:
+                raise RunTimeout(f"timed out: the run took longer than {limit:g} s "
+                                 f"(stopped at t = {t + h!r} s)")
+
+    slave.do_step = checked_step
+    return slave
 
 
 def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
@@ -47,27 +130,39 @@ def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | 
 
 def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
                  progress: Callable[[RunResult], None] | None = None,
-                 unzip_dir: str | os.PathLike | None = None) -> list[RunResult]:
+                 unzip_dir: str | os.PathLike | None = None,
+                 timeout: float | None = None) -> list[RunResult]:
     """Run every controller of the scenario (each with a fresh plant instance).
 
     ``fmu`` is the plant FMU's path when ``plant`` is ``"fmu"`` (and
     ``unzip_dir`` an extracted copy of it, if there is one); ``progress`` is
-    called with each controller's result as it finishes.
+    called with each controller's result as it finishes. With ``timeout`` (s),
+    :class:`RunTimeout` is raised once the whole run has taken longer. Ctrl-C
+    raises KeyboardInterrupt between two steps (:func:`deferred_interrupt`).
     """
     results = []
-    for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
-        slave = make_plant(scenario, plant, fmu, unzip_dir)
-        try:
-            results.append(run_controller(slave, settings, scenario.maneuver, label))
-        finally:
-            slave.close()
-        if progress is not None:
-            progress(results[-1])
+    deadline = None if timeout is None else time.monotonic() + timeout
+    with deferred_interrupt():
+        for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
+            slave = make_plant(scenario, plant, fmu, unzip_dir)
+            _guard_steps(slave, deadline, timeout)
+            try:
+                results.append(run_controller(slave, settings, scenario.maneuver, label))
+            finally:
+                slave.close()
+            if progress is not None:
+                progress(results[-1])
     return results
 
 
-def summary_rows(results: list[RunResult]) -> list[dict]:
-    """One row per controller and iteration (columns SUMMARY_COLUMNS)."""
+def summary_rows(results: list[RunResult], warnings: Mapping[str, str] | None = None
+                 ) -> list[dict]:
+    """One row per controller and iteration (columns SUMMARY_COLUMNS).
+
+    ``warnings`` (label -> text) go into the ``message`` of a controller's rows
+    with status ok.
+    """
+    warnings = warnings or {}
     rows = []
     for r in results:
         for tr in r.traces:
@@ -75,7 +170,8 @@ def summary_rows(results: list[RunResult]) -> list[dict]:
             rows.append({
                 "controller": r.label, "kind": r.settings.kind, "t_p_max": r.settings.t_p_max,
                 "iteration": tr.iteration, **m,
-                "status": "error" if tr.error else "ok", "message": tr.error,
+                "status": "error" if tr.error else "ok",
+                "message": tr.error or warnings.get(r.label, ""),
             })
         if r.error and (not r.traces or not r.traces[-1].error):
             rows.append({"controller": r.label, "kind": r.settings.kind,
@@ -84,18 +180,147 @@ def summary_rows(results: list[RunResult]) -> list[dict]:
     return rows
 
 
-def write_results(results: list[RunResult], out: Path) -> list[dict]:
-    """Write summary.csv, trace_<controller>_it<N>.csv and the plots into ``out``."""
-    from papwc.analysis import plots
+#: Name of the file that marks an output folder whose results are not all written.
+INCOMPLETE = "INCOMPLETE"
+#: Plots of ``papwc run``.
+RUN_PLOTS = ("error.png", "force.png", "estimates.png")
+#: Trace files of ``papwc run``.
+_TRACE_FILE = re.compile(r"trace_.+_it[0-9]+\.csv(\.tmp)?")
 
-    out.mkdir(parents=True, exist_ok=True)
-    rows = summary_rows(results)
-    write_rows(out / "summary.csv", rows, SUMMARY_COLUMNS)
+
+def trace_name(label: str, iteration: int) -> str:
+    """File name of a controller's trace of one iteration."""
+    return f"trace_{label}_it{iteration}.csv"
+
+
+class ResultsFolder:
+    """What ``papwc run`` writes into its output folder, written as results come.
+
+    Parameters
+    ----------
+    out : path
+        The output folder (created).
+    labels : iterable of str
+        The controllers the run will add, in order.
+    warnings : mapping, optional
+        Label -> warning text, recorded in the ``message`` of ok rows.
+    what : str
+        What writes (``"papwc run"``), for the ``INCOMPLETE`` file.
+    """
+
+    def __init__(self, out: str | os.PathLike, labels: Iterable[str],
+                 warnings: Mapping[str, str] | None = None, what: str = "papwc run") -> None:
+        self.out = Path(out)
+        self.labels = list(labels)
+        self.warnings = dict(warnings or {})
+        self.what = what
+        self.results: list[RunResult] = []
+        self.rows: list[dict] = []
+        self.written: list[str] = []
+
+    def start(self) -> None:
+        """Create the folder, remove what an earlier run wrote there, mark it incomplete."""
+        make_folder(self.out)
+        try:
+            entries = list(self.out.iterdir())
+        except OSError as exc:
+            from papwc.errors import OutputError
+            from papwc.output import os_error_text
+
+            raise OutputError(f"cannot list folder {str(self.out)!r}: "
+                              f"{os_error_text(exc)}") from exc
+        own = {"summary.csv", "summary.csv.tmp", INCOMPLETE, INCOMPLETE + ".tmp", *RUN_PLOTS,
+               *(Path(p).stem + ".tmp.png" for p in RUN_PLOTS)}
+        for entry in entries:
+            if (entry.name in own or _TRACE_FILE.fullmatch(entry.name)) and not entry.is_dir():
+                remove_file(entry)
+        self._mark(f"{self.what} started at {time.strftime('%Y-%m-%d %H:%M:%S')} and has not "
+                   "finished (or was stopped)")
+
+    def _missing(self) -> list[str]:
+        done = {r.label for r in self.results}
+        return ([f"controller {label} (traces and summary rows)" for label in self.labels
+                 if label not in done] + [f"plot {name}" for name in RUN_PLOTS])
+
+    def _mark(self, reason: str) -> None:
+        done = [f"controller {r.label}: {len(r.traces)} trace(s) and summary rows"
+                for r in self.results]
+        text = [f"This folder is incomplete: {reason}.", ""]
+        text += ["Written:"] + [f"- {d}" for d in done] if done else ["Written: nothing yet."]
+        text += ["", "Missing:"] + [f"- {m}" for m in self._missing()] + [""]
+        write_text(self.out / INCOMPLETE, "\n".join(text))
+
+    def add(self, result: RunResult) -> None:
+        """Write one finished controller: its traces, then summary.csv with its rows."""
+        for tr in result.traces:
+            name = trace_name(result.label, tr.iteration)
+            tr.to_csv(self.out / name)
+            self.written.append(name)
+        self.results.append(result)
+        self.rows += summary_rows([result], self.warnings)
+        write_rows(self.out / "summary.csv", self.rows, SUMMARY_COLUMNS)
+        if "summary.csv" not in self.written:
+            self.written.append("summary.csv")
+        self._mark(f"{self.what} is under way or was stopped")
+
+    def finish(self, plots: bool = True) -> list[dict]:
+        """Write the plots and remove ``INCOMPLETE``; return the summary rows."""
+        if plots:
+            from papwc.analysis import plots as run_plots
+
+            run_plots.run_plots(self.results, self.out)
+            self.written += list(RUN_PLOTS)
+        remove_file(self.out / INCOMPLETE)
+        return self.rows
+
+    def abort(self, reason: str) -> str:
+        """Mark the folder incomplete with ``reason``; return a line saying what was kept.
+
+        Never raises (the folder may be the reason).
+        """
+        try:
+            self._mark(reason)
+            marked = f"; see {self.out / INCOMPLETE}"
+        except OSError:
+            marked = ""
+        kept = [r.label for r in self.results]
+        missing = [label for label in self.labels if label not in kept]
+        return (f"kept in {self.out}: "
+                + (f"the results of {', '.join(kept)}" if kept else "no finished controller")
+                + (f"; missing: {', '.join(missing)}" if missing else "")
+                + f"; the plots were not written{marked}")
+
+
+def run_into_folder(folder: ResultsFolder, run: Callable[[Callable[[RunResult], None]], list],
+                    ) -> list[RunResult]:
+    """Call ``run(progress)`` with ``folder.add`` as progress; mark the folder if it stops.
+
+    On Ctrl-C or an exception the folder is marked incomplete (what was kept,
+    what is missing), the line saying so is printed on stderr, and the
+    exception propagates.
+    """
+    import sys
+
+    try:
+        return run(folder.add)
+    except KeyboardInterrupt:
+        print(f"{folder.what}: interrupted; " + folder.abort("interrupted (Ctrl-C)"),
+              file=sys.stderr)
+        raise
+    except BaseException as exc:
+        print(f"{folder.what}: stopped; " + folder.abort(f"stopped by an error: {exc}"),
+              file=sys.stderr)
+        raise
+
+
+def write_results(results: list[RunResult], out: Path,
+                  warnings: Mapping[str, str] | None = None) -> list[dict]:
+    """Write summary.csv, trace_<controller>_it<N>.csv and the plots into ``out`` at once."""
+    folder = ResultsFolder(out, [r.label for r in results], warnings)
+    folder.start()
     for r in results:
-        for tr in r.traces:
-            tr.to_csv(out / f"trace_{r.label}_it{tr.iteration}.csv")
-    plots.run_plots(results, out)
-    return rows
+        folder.add(r)
+    return folder.finish()
 
 
 def format_table(rows: list[dict]) -> str:

@@ -13,7 +13,16 @@ The schema (public; extend it, don't rename it)::
 
 Every field may be left out and takes the default of its table in the model
 layer (:mod:`papwc.model.plant`, :mod:`papwc.model.maneuver`,
-:mod:`papwc.model.settings`); ``kind`` is required.
+:mod:`papwc.model.settings`; :func:`field_table` lists them); ``kind`` is
+required. ``name`` and ``label`` name files, so they are letters, digits and
+``_ . + -`` (:data:`papwc.limits.NAME_PATTERN`); the default name is the file's
+stem made so. Rules between tables: ``duration`` is a whole number of samples
+``T``, every ``t_p_max >= T``. A controller whose ``f_p_max <= f_s`` cannot
+break the mass away: the scenario is accepted with a warning
+(``Scenario.warnings``).
+
+A file is read as UTF-8 text of at most :data:`papwc.limits.MAX_INPUT_BYTES`;
+a folder, a FIFO, a binary or non-UTF-8 file is refused by name.
 """
 
 from __future__ import annotations
@@ -28,15 +37,23 @@ from typing import Any
 from papwc.controllers import CONTROLLER_KINDS
 from papwc.controllers.settings import ControllerSettings, settings_for_kind
 from papwc.errors import ScenarioError
+from papwc.limits import MAX_INPUT_BYTES, check_name, input_path_problem, safe_name
 from papwc.master.run import Maneuver
-from papwc.model.maneuver import MANEUVER_DEFAULTS, maneuver_problems
-from papwc.model.plant import PLANT_DEFAULTS, SCENARIO_PLANT_FIELDS, plant_problems
+from papwc.model.maneuver import MANEUVER_DEFAULTS, MANEUVER_VARIABLES, maneuver_problems
+from papwc.model.plant import (
+    PLANT_DEFAULTS,
+    PLANT_PARAMETERS,
+    SCENARIO_PLANT_FIELDS,
+    plant_problems,
+)
+from papwc.model.settings import CONTROLLER_SETTINGS, settings_problems
 
 __all__ = [
     "MANEUVER_FIELDS",
     "PLANT_FIELDS",
     "Scenario",
     "controller_label",
+    "field_table",
     "load_scenario",
     "parse_scenario",
     "read_toml",
@@ -61,6 +78,12 @@ class Scenario:
     labels: list[str]
     source: str = ""
     extra: dict = field(default_factory=dict)
+    #: Inputs that cannot work as meant but are allowed: (label, message).
+    warnings: list[tuple[str, str]] = field(default_factory=list)
+
+    def warnings_of(self, label: str) -> str:
+        """The warnings about controller ``label``, joined by ``"; "``."""
+        return "; ".join(message for who, message in self.warnings if who == label)
 
 
 def controller_label(settings: ControllerSettings, label: str | None = None) -> str:
@@ -83,12 +106,41 @@ def load_scenario(path: str | os.PathLike) -> Scenario:
 
 
 def read_toml(path: str | os.PathLike, what: str = "scenario") -> dict:
-    """Read a TOML file; a missing file or a syntax error is a ScenarioError naming it."""
+    """Read a TOML file as UTF-8 text.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file: missing, a folder, a FIFO or device, larger than
+        :data:`~papwc.limits.MAX_INPUT_BYTES`, binary (a NUL byte), not UTF-8,
+        not readable, or not valid TOML.
+    """
+    problem = input_path_problem(Path(path))
+    if problem == "no such file":
+        raise ScenarioError(f"{path}: no such {what} file")
+    if problem is not None:
+        raise ScenarioError(f"{path}: {problem}; give a {what} file (TOML)")
     try:
         with open(path, "rb") as f:
-            return tomllib.load(f)
-    except FileNotFoundError:
-        raise ScenarioError(f"{path}: no such {what} file") from None
+            raw = f.read(MAX_INPUT_BYTES + 1)
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read the {what} file: "
+                            f"{exc.strerror or exc}") from None
+    if len(raw) > MAX_INPUT_BYTES:
+        raise ScenarioError(f"{path}: larger than {MAX_INPUT_BYTES // (1024 * 1024)} MB; not a "
+                            f"{what} file")
+    if b"\0" in raw:
+        raise ScenarioError(f"{path}: a binary file (it holds NUL bytes), not a {what} file "
+                            "(TOML text)")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise ScenarioError(f"{path}: not UTF-8 text: byte 0x{raw[exc.start]:02x} at line "
+                            f"{line} (offset {exc.start}); save the {what} file as UTF-8"
+                            ) from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{path}: not valid TOML: {exc}") from None
 
@@ -126,9 +178,18 @@ def parse_scenario(data: dict, source: str, allow: tuple[str, ...] = ()) -> Scen
                 f"{source}: unknown top-level field {key!r}; allowed: "
                 + ", ".join(TOP_LEVEL + allow)
             )
-    name = data.get("name", Path(source).stem)
-    if not isinstance(name, str):
-        raise ScenarioError(f"{source}: field 'name' = {name!r}: must be a string")
+    if "name" in data:
+        name = data["name"]
+        if not isinstance(name, str):
+            raise ScenarioError(f"{source}: field 'name' = {name!r}: must be a string")
+        bad = check_name(name)
+        if bad is not None:
+            raise ScenarioError(f"{source}: field 'name' = {name!r}: {bad}")
+    else:
+        name = safe_name(Path(source).stem)
+    description = data.get("description", "")
+    if not isinstance(description, str):
+        raise ScenarioError(f"{source}: field 'description' = {description!r}: must be a string")
 
     plant_in = _table(source, data, "plant")
     _check_fields(source, "[plant]", plant_in, PLANT_FIELDS)
@@ -166,13 +227,57 @@ def parse_scenario(data: dict, source: str, allow: tuple[str, ...] = ()) -> Scen
         label = table.get("label")
         if label is not None and not isinstance(label, str):
             raise ScenarioError(f"{source}: {where} field 'label' = {label!r}: must be a string")
+        if label is not None and check_name(label) is not None:
+            raise ScenarioError(f"{source}: {where} field 'label' = {label!r}: "
+                                + check_name(label))
         settings = ControllerSettings.from_mapping({k: v for k, v in table.items() if k != "label"})
         _first(source, where, settings.problems(tuple(CONTROLLER_KINDS)))
+        # Rules between the settings and the maneuver (t_p_max >= T).
+        _first(source, where, settings_problems(
+            {**settings.to_mapping(with_none=True), "T": maneuver.T}))
         controllers.append(settings)
         labels.append(controller_label(settings, label))
     if len(set(labels)) != len(labels):
         raise ScenarioError(
             f"{source}: two [[controller]] tables have the same label; give each a 'label'"
         )
+    warnings = []
+    for settings, label in zip(controllers, labels, strict=True):
+        if settings.f_p_max <= plant["f_s"]:
+            warnings.append((label, f"f_p_max = {settings.f_p_max!r} N <= f_s = "
+                                    f"{plant['f_s']!r} N: no force of this controller breaks "
+                                    "the mass away from rest"))
     extra = {k: data[k] for k in allow if k in data}
-    return Scenario(name, plant, maneuver, controllers, labels, source, extra)
+    return Scenario(name, plant, maneuver, controllers, labels, source, extra, warnings)
+
+
+def field_table() -> str:
+    """Every field of a scenario file with its unit, default and range, as a Markdown table.
+
+    Generated from the model layer's tables (the source of the defaults).
+    """
+    lines = ["| table | field | unit | default | allowed | description |",
+             "|---|---|---|---|---|---|"]
+
+    def row(table: str, var) -> None:
+        default = ("computed (see description)" if var.default is None
+                   else "required" if var.name == "kind" else repr(var.default))
+        allowed = (", ".join(repr(c) for c in var.choices) if var.choices
+                   else "true or false" if var.type == "Boolean"
+                   else "a string" if var.type == "String" else var.range_text())
+        if var.name == "kind":
+            allowed = ", ".join(repr(k) for k in sorted(CONTROLLER_KINDS))
+        if var.kinds:
+            table += " (" + ", ".join(var.kinds) + ")"
+        unit = var.unit if var.unit not in ("", "1") else "-"
+        lines.append(f"| {table} | `{var.name}` | {unit} | {default} | {allowed} "
+                     f"{var.note} | {var.description} |".replace("  |", " |"))
+
+    for var in PLANT_PARAMETERS:
+        if var.name in SCENARIO_PLANT_FIELDS:
+            row("[plant]", var)
+    for var in MANEUVER_VARIABLES:
+        row("[maneuver]", var)
+    for var in CONTROLLER_SETTINGS:
+        row("[[controller]]", var)
+    return "\n".join(lines)

@@ -10,6 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from papwc.master import RunResult  # noqa: E402
+from papwc.output import save_figure  # noqa: E402
 
 
 def _first_last(result: RunResult):
@@ -44,8 +45,10 @@ def time_panels(results: list[RunResult], column: str, ylabel: str, title: str,
         ax.legend(fontsize=8)
     axes[-1, 0].set_xlabel("time t (s)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        save_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)
 
 
 def run_plots(results: list[RunResult], out: Path) -> None:

@@ -14,15 +14,30 @@ from papwc.analysis import claims, paper, plots  # noqa: E402
 from papwc.errors import ScenarioError  # noqa: E402
 from papwc.master import RunResult, summarize  # noqa: E402
 from papwc.model.pulse import b_coulomb, pulse_displacement, pulse_width  # noqa: E402
-from papwc.output import write_rows, write_text  # noqa: E402
+from papwc.output import (  # noqa: E402
+    make_folder,
+    remove_file,
+    save_figure,
+    write_rows,
+    write_text,
+)
 from papwc.resources import scenario_file  # noqa: E402
-from papwc.runner import ensure_plant_fmu, run_scenario, write_results  # noqa: E402
+from papwc.runner import (  # noqa: E402
+    INCOMPLETE,
+    ResultsFolder,
+    ensure_plant_fmu,
+    run_into_folder,
+    run_scenario,
+)
 from papwc.scenario import load_scenario  # noqa: E402
 
 #: The paper's scenario (a shipped file).
 DEFAULT_SCENARIO = "paper.toml"
 #: Further shipped scenarios reproduced beside the paper's.
 EXTRA_SCENARIOS = ("exact.toml", "exact_encoder.toml")
+#: Files ``papwc reproduce`` writes into its folder (besides runs/ and fmu/).
+OUTPUTS = ("fig1.png", *(f"fig{i}.png" for i in range(3, 10)), "fig_exact.png",
+           "paper_numbers.csv", "claims.csv", "readings.csv", "report.md")
 
 
 def fig1(path: Path, p: dict[str, float] = paper.TABLE_1) -> None:
@@ -45,8 +60,10 @@ def fig1(path: Path, p: dict[str, float] = paper.TABLE_1) -> None:
     ax.grid(True, alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    try:
+        save_figure(fig, path, dpi=110)
+    finally:
+        plt.close(fig)
 
 
 def _by_kind(results, kind):
@@ -119,16 +136,30 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
     scenario = load_scenario(path)
     extra_scenarios = [] if scenario_path else [load_scenario(scenario_file(name))
                                                 for name in EXTRA_SCENARIOS]
-    out.mkdir(parents=True, exist_ok=True)
+    make_folder(out)
     fmu = ensure_plant_fmu(fmu, out)
+    # Results go to disk as they come: runs/ per controller (see papwc.runner), the
+    # figures and tables at the end; INCOMPLETE marks the folder until then.
+    for name in OUTPUTS:
+        remove_file(out / name)
+    write_text(out / INCOMPLETE, "papwc reproduce has not finished (or was stopped): the "
+               "figures, paper_numbers.csv and report.md are missing; the controllers that "
+               "finished are in runs/ (see runs/INCOMPLETE).\n")
+    scenarios = [scenario, *extra_scenarios]
+    folder = ResultsFolder(out / "runs", [label for s in scenarios for label in s.labels],
+                           {label: s.warnings_of(label) for s in scenarios for label in s.labels},
+                           what="papwc reproduce")
+    folder.start()
     print(f"running {path} ({len(scenario.controllers)} controllers x "
           f"{scenario.maneuver.iterations} iterations) on {fmu} ...")
-    results = run_scenario(scenario, "fmu", fmu)
+    results = run_into_folder(folder, lambda progress: run_scenario(
+        scenario, "fmu", fmu, progress=progress))
     extra = []
     for other in extra_scenarios:
         print(f"running {other.source} ...")
-        extra += run_scenario(other, "fmu", fmu)
-    write_results(results + extra, out / "runs")
+        extra += run_into_folder(folder, lambda progress, other=other: run_scenario(
+            other, "fmu", fmu, progress=progress))
+    run_into_folder(folder, lambda progress: folder.finish())
 
     fig1(out / "fig1.png")
     pwc, papwc = _by_kind(results, "pwc"), _by_kind(results, "papwc")
@@ -157,6 +188,7 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
                ["quantity", "paper", "computed"])
     claims_md = claims.write_claims(out, scenario, results, fmu, readings, workers)
     write_text(out / "report.md", _report(path, numbers, results + extra) + "\n" + claims_md)
+    remove_file(out / INCOMPLETE)
     print(f"wrote {out}/fig1.png, fig3.png ... fig9.png, paper_numbers.csv, claims.csv, "
           f"{'readings.csv, ' if readings else ''}report.md, runs/")
     failed = [r for r in results + extra if r.error]

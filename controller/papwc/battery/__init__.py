@@ -51,8 +51,20 @@ points reuse the same numbers (common random numbers). All runs are drawn up
 front, so the results do not depend on the number of workers, the engine or the
 order in which runs finish.
 
-``[battery]``: options of the report. ``success_tolerance`` (m): the error band
-used to call a run a success (default: each controller's own ``tolerance``).
+``[battery]``: options. ``success_tolerance`` (m, 0 to 1): the error band used
+to call a run a success (default: each controller's own ``tolerance``).
+``run_timeout`` (s, default 600, at most a week): the time limit of one run; a
+run past it stops (between two communication steps) and is recorded with
+status ``error`` and the message ``timed out: ...``; a local worker still busy
+10 s later is killed and replaced (on Dask the limit is kept inside the run:
+Dask cannot stop a task that does not return). ``--resume`` computes a timed
+out run again.
+
+Bounds, checked before any run: the runs of the batteries together and the
+grid points of a sweep (``--max-runs``, default 100000), the communication
+steps of each run (``--max-steps``, default 1e6); every ``[sweep]`` value is
+checked against its field's range, and a battery all of whose runs are invalid
+is refused.
 
 A grid and draws combine: every grid point gets all ``n`` draws. Each run has
 an id (``s<grid point>``, ``d<draw>``, ``s<grid point>-d<draw>``, or
@@ -64,7 +76,12 @@ Outputs of :func:`run_battery` in the output folder:
 
 - ``journal.jsonl`` -- one JSON line per finished run, flushed and fsync'ed as it
   finishes (a header line first); ``--resume`` reads it back and runs only what is
-  missing. A torn last line (the process was killed while writing) is dropped.
+  missing. It is keyed by what determines the results (the plant FMU's GUID, a
+  digest of its sources, and papwc's version and code), so a rebuilt FMU keeps
+  the finished runs. A line that cannot be used (torn, not JSON, a record of
+  the wrong shape or of other parameters) is skipped with a warning and its run
+  computed again (see :mod:`papwc.battery.journal`). On Ctrl-C the runs that
+  finished are in it and the message says how to resume.
   ``journal.jsonl.lock`` keeps two batteries from writing into one folder.
 - ``results.csv`` -- one row per run, controller and iteration, sorted by
   battery, run id, controller and iteration: the varied fields (one column per

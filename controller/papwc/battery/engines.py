@@ -2,18 +2,14 @@
 
 from __future__ import annotations
 
+import math
 import os
+import time
+from collections import deque
 from collections.abc import Callable
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-from concurrent.futures.process import BrokenProcessPool
 from pathlib import Path
 
-from papwc.battery.worker import (
-    error_record,
-    init_local_worker,
-    run_in_dask_worker,
-    run_in_local_worker,
-)
+from papwc.battery.worker import error_record, run_in_dask_worker
 from papwc.errors import BatteryError
 
 # --- engines ----------------------------------------------------------------------------------
@@ -35,51 +31,152 @@ def mp_context():
     return multiprocessing.get_context("forkserver" if "forkserver" in methods else "spawn")
 
 
-def run_local(tasks: list[dict], fmu_path: Path, workers: int,
-               on_done: Callable[[dict], None]) -> None:
-    """Run tasks in a pool of ``workers`` processes; call ``on_done(record)`` as each ends.
+#: Seconds a worker may run past its run's time limit before it is killed (the run
+#: itself stops at the limit, between two communication steps).
+KILL_GRACE = 10.0
+#: Seconds a new worker may take to start and extract the FMU.
+START_TIMEOUT = 120.0
 
-    At most two tasks per worker are queued at a time. If a worker process dies
-    (e.g. the FMU crashed it), the tasks that were queued are run again one per
-    fresh single-process pool, so the one that kills its worker is recorded as an
-    error and the others are not affected.
-    """
-    pending = list(reversed(tasks))
-    suspects: list[dict] = []
 
-    def pool(n: int) -> ProcessPoolExecutor:
-        return ProcessPoolExecutor(max_workers=n, mp_context=mp_context(),
-                                   initializer=init_local_worker,
-                                   initargs=(str(fmu_path), os.getpid()))
+class _Worker:
+    """One local worker process and its pipe."""
 
-    while pending:
-        executor = pool(workers)
-        in_flight: dict = {}
-        broken = False
+    def __init__(self, ctx, fmu_path: Path) -> None:
+        from papwc.battery.worker import local_worker_main
+
+        self.conn, child = ctx.Pipe()
+        self.process = ctx.Process(target=local_worker_main,
+                                   args=(child, str(fmu_path), os.getpid()), daemon=True)
+        self.process.start()
+        child.close()
+        self.ready = False
+        self.started = time.monotonic()
+        self.task: dict | None = None
+        self.deadline = math.inf
+
+    def send(self, task: dict, limit: float) -> None:
+        self.task = task
+        self.deadline = time.monotonic() + limit
+        self.conn.send(task)
+
+    def poll(self) -> tuple[str, object] | None:
+        """A message if one has arrived, None if none, ``("died", None)`` if the pipe closed."""
         try:
-            while (pending or in_flight) and not broken:
-                while pending and len(in_flight) < 2 * workers:
-                    task = pending.pop()
-                    in_flight[executor.submit(run_in_local_worker, task)] = task
-                done, _ = wait(in_flight, return_when=FIRST_COMPLETED)
-                for fut in done:
-                    task = in_flight.pop(fut)
-                    try:
-                        on_done(fut.result())
-                    except BrokenProcessPool:
-                        suspects.append(task)
-                        broken = True
-            suspects.extend(in_flight.values())
-        finally:
-            executor.shutdown(wait=True, cancel_futures=True)
-        for task in suspects:
-            with pool(1) as single:
-                try:
-                    on_done(single.submit(run_in_local_worker, task).result())
-                except BrokenProcessPool:
-                    on_done(error_record(task, "the worker process running it died "
-                                        "(e.g. the FMU crashed the process)"))
-        suspects = []
+            if not self.conn.poll():
+                return None
+            return self.conn.recv()
+        except (EOFError, OSError):
+            return ("died", None)
+
+    def kill(self) -> None:
+        if self.process.is_alive():
+            self.process.kill()
+        self.process.join(timeout=5)
+        self.conn.close()
+
+    def stop(self) -> None:
+        """Ask the worker to exit (it removes its extracted FMU), kill it if it does not."""
+        try:
+            self.conn.send(None)
+        except (OSError, ValueError):
+            pass
+        self.process.join(timeout=5)
+        self.kill()
+
+
+def run_local(tasks: list[dict], fmu_path: Path, workers: int,
+              on_done: Callable[[dict], None], timeout: float | None = None) -> None:
+    """Run tasks on ``workers`` local processes; call ``on_done(record)`` as each ends.
+
+    Each worker runs one task at a time. A task carries its time limit
+    (``task["timeout"]``, s; else ``timeout``): the run stops itself at the
+    limit (recorded ``timed out``); a worker still busy ``KILL_GRACE`` seconds
+    later is killed, its run recorded as timed out, and the worker replaced. A
+    worker that dies (e.g. the FMU crashed the process) has its run recorded as
+    an error and is replaced; the other runs are not affected.
+
+    On Ctrl-C (KeyboardInterrupt) the records that have arrived are handed to
+    ``on_done``, every worker is killed at once, and the interrupt propagates.
+    """
+    from multiprocessing.connection import wait as wait_any
+
+    ctx = mp_context()
+    pending = deque(tasks)
+    pool: list[_Worker] = []
+
+    def limit_of(task: dict) -> float:
+        limit = task.get("timeout", timeout)
+        return math.inf if limit is None else float(limit)
+
+    def finish(worker: _Worker, record: dict) -> None:
+        worker.task, worker.deadline = None, math.inf
+        on_done(record)
+
+    def replace(worker: _Worker) -> None:
+        worker.kill()
+        pool.remove(worker)
+        if pending:
+            pool.append(_Worker(ctx, fmu_path))
+
+    try:
+        pool.extend(_Worker(ctx, fmu_path) for _ in range(min(workers, len(pending))))
+        while pool and (pending or any(w.task is not None for w in pool)):
+            for worker in pool:
+                if worker.ready and worker.task is None and pending:
+                    task = pending.popleft()
+                    worker.send(task, limit_of(task) + KILL_GRACE)
+            now = time.monotonic()
+            deadlines = [w.deadline for w in pool if w.task is not None]
+            deadlines += [w.started + START_TIMEOUT for w in pool if not w.ready]
+            wait_s = max(0.0, min(deadlines, default=math.inf) - now)
+            wait_any([w.conn for w in pool] + [w.process.sentinel for w in pool],
+                     timeout=None if math.isinf(wait_s) else min(wait_s, 3600.0))
+            for worker in list(pool):
+                message = worker.poll()
+                if message is None and not worker.process.is_alive():
+                    message = worker.poll() or ("died", None)
+                if message is None:
+                    continue
+                kind, value = message
+                if kind == "ready":
+                    worker.ready = True
+                elif kind == "done":
+                    finish(worker, value)
+                else:  # the process died
+                    worker.process.join(timeout=5)
+                    code = worker.process.exitcode
+                    if worker.task is not None:
+                        finish(worker, error_record(
+                            worker.task, f"the worker process running it died (exit code "
+                            f"{code}; e.g. the FMU crashed the process)", transient=True))
+                    elif not worker.ready:
+                        raise BatteryError(f"a worker process could not start (exit code "
+                                           f"{code}); the FMU {fmu_path} may not load")
+                    replace(worker)
+            now = time.monotonic()
+            for worker in list(pool):
+                if worker.task is not None and now > worker.deadline:
+                    task = worker.task
+                    finish(worker, error_record(
+                        task, f"timed out: the run took longer than {limit_of(task):g} s "
+                        f"(run_timeout) and did not stop; its worker was killed and replaced",
+                        transient=True))
+                    replace(worker)
+                elif not worker.ready and now > worker.started + START_TIMEOUT:
+                    raise BatteryError(f"a worker process did not start within "
+                                       f"{START_TIMEOUT:g} s")
+    except KeyboardInterrupt:
+        for worker in pool:
+            message = worker.poll()
+            if message is not None and message[0] == "done":
+                finish(worker, message[1])
+        for worker in pool:
+            worker.kill()
+        pool.clear()
+        raise
+    finally:
+        for worker in pool:
+            worker.stop()
 
 
 def run_dask(tasks: list[dict], fmu_path: Path, digest: str, scheduler: str,

@@ -1,13 +1,30 @@
-"""The journal: finished runs, one JSON line each, fsync'ed as they finish, read back on resume."""
+"""The journal: finished runs, one JSON line each, fsync'ed as they finish, read back on resume.
+
+The first line is a header: the journal format, the *key* of what determines a
+run's results (the plant FMU's model identity -- its GUID, a digest of its
+sources --, papwc's version and a digest of the code that runs in a worker)
+and a fingerprint of the key and of every planned run. Each run record carries
+the key too. ``--resume`` keeps a record only if it is well formed, belongs to
+a planned run with the same parameters (``run_hash``) and has the current key;
+every other line (a torn last line, a line that is not JSON, a record of the
+wrong shape, a record of a run that timed out or whose worker died) is skipped
+with a warning and its run computed again. A rebuilt FMU from the same sources
+has the same GUID, so its finished runs are kept.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import fcntl
 import json
+import math
 import os
+import signal
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
-from papwc.errors import BatteryError
+from papwc.errors import BatteryError, OutputError
+from papwc.output import os_error_text
 
 # --- journal ---------------------------------------------------------------------------------
 
@@ -15,50 +32,172 @@ from papwc.errors import BatteryError
 #: File name of the journal in the output folder.
 JOURNAL_NAME = "journal.jsonl"
 #: Version of the journal's record layout.
-JOURNAL_FORMAT = 1
+JOURNAL_FORMAT = 2
+#: Warnings about skipped lines kept per journal (the rest are counted).
+_WARNINGS_KEPT = 20
+
+_METRIC_TYPES = {"final_error_m": "number", "pulses": "int", "settle_time_s": "number",
+                 "limit_cycle": "bool", "cycle_p2p_m": "number", "b_hat": "number",
+                 "f_c_hat": "number"}
 
 
-def read_journal(path: Path) -> tuple[dict | None, list[dict], int]:
+def _is_number(value) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def record_problem(obj) -> str | None:
+    """What is wrong with a run record's shape, or None if it can be used."""
+    if not isinstance(obj, dict):
+        return "not a JSON object"
+    for name in ("battery", "run_id", "run_hash", "message"):
+        if not isinstance(obj.get(name), str):
+            return f"field {name!r} is missing or not a string"
+    if obj.get("status") not in ("ok", "error"):
+        return "field 'status' is not 'ok' or 'error'"
+    controllers = obj.get("controllers")
+    if not isinstance(controllers, list):
+        return "field 'controllers' is not a list"
+    if obj["status"] == "ok" and not controllers:
+        return "status ok without controllers"
+    for c in controllers:
+        if not isinstance(c, dict):
+            return "a controller is not an object"
+        if not (isinstance(c.get("label"), str) and isinstance(c.get("kind"), str)
+                and isinstance(c.get("error"), str) and _is_number(c.get("tolerance"))
+                and isinstance(c.get("iterations"), list)):
+            return "a controller lacks label, kind, tolerance, error or iterations"
+        if "warning" in c and not isinstance(c["warning"], str):
+            return "a controller's warning is not a string"
+        for it in c["iterations"]:
+            if not isinstance(it, dict) or not isinstance(it.get("error"), str) or not (
+                    isinstance(it.get("iteration"), int)
+                    and not isinstance(it.get("iteration"), bool)):
+                return "an iteration lacks its number or error"
+            for name, kind in _METRIC_TYPES.items():
+                value = it.get(name)
+                ok = (isinstance(value, bool) if kind == "bool"
+                      else isinstance(value, int) and not isinstance(value, bool)
+                      if kind == "int" else _is_number(value))
+                if not ok:
+                    return f"an iteration's {name!r} is missing or of the wrong type"
+            if not it["error"] and not math.isfinite(it["final_error_m"]):
+                return "an iteration without error has no finite final error"
+    return None
+
+
+def read_journal(path: Path, warnings: list[str] | None = None, strict: bool = False
+                 ) -> tuple[dict | None, list[dict], int]:
     """Header, run records and the size in bytes of the complete lines of a journal.
 
-    A last line that is not complete JSON (the writer was killed) is ignored;
-    a bad line before the last one raises :class:`BatteryError`.
+    A line that cannot be used -- not JSON, torn (the writer was killed), not
+    an object, with ``strict`` a run record of the wrong shape
+    (:func:`record_problem`) -- is skipped; ``warnings`` (if given) gets one
+    text per skipped line (a torn last line is not counted).
     """
     header, records, good = None, [], 0
     with open(path, "rb") as f:
         lines = f.read().split(b"\n")
     offset = 0
+    skipped = 0
+
+    def skip(i: int, why: str) -> None:
+        nonlocal skipped
+        skipped += 1
+        if warnings is not None and skipped <= _WARNINGS_KEPT:
+            warnings.append(f"{path}: line 1 (the header) is unreadable ({why})" if i == 0
+                            else f"{path}: line {i + 1} skipped ({why}); its run is computed "
+                            "again")
+
     for i, line in enumerate(lines):
         end = offset + len(line) + 1
-        is_last = i == len(lines) - 1 or (i == len(lines) - 2 and lines[-1] == b"")
-        if not line:
-            offset = end
+        offset = end
+        if not line.strip():
             continue
+        last = i == len(lines) - 1
         try:
             obj = json.loads(line)
-            if not isinstance(obj, dict) or i == len(lines) - 1:
-                raise ValueError("incomplete line")
-        except ValueError as exc:
-            if is_last:
-                break
-            raise BatteryError(f"{path}: line {i + 1} is not a journal record") from exc
-        if obj.get("type") == "header":
+        except (ValueError, UnicodeDecodeError):
+            if not last:
+                skip(i, "not JSON")
+            continue
+        if last:
+            # No newline after it: the writer was killed while writing it.
+            continue
+        if not isinstance(obj, dict):
+            skip(i, "not a JSON object")
+            continue
+        if obj.get("type") == "header" and i == 0:
             header = obj
         elif obj.get("type") == "run":
+            why = record_problem(obj) if strict else None
+            if why is not None:
+                skip(i, f"malformed record: {why}")
+                continue
             records.append(obj)
-        offset = good = end
+        else:
+            skip(i, "neither a header nor a run record")
+            continue
+        good = end
+    if warnings is not None and skipped > _WARNINGS_KEPT:
+        warnings.append(f"{path}: {skipped - _WARNINGS_KEPT} more lines skipped")
     return header, records, good
 
 
-class Journal:
-    """Append-only JSON-lines file of finished runs, fsync'ed per record and locked."""
+@contextlib.contextmanager
+def _ctrl_c_held() -> Iterator[None]:
+    """Block SIGINT in this thread for the block; a Ctrl-C meanwhile arrives after it."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None:
+        yield
+        return
+    old = mask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, old)
 
-    def __init__(self, path: Path, header: dict, resume: bool, overwrite: bool) -> None:
+
+def _os_error(path: Path, operation: str, exc: OSError) -> OutputError:
+    return OutputError(f"cannot {operation} {str(path)!r}: {os_error_text(exc)}")
+
+
+class Journal:
+    """Append-only JSON-lines file of finished runs, fsync'ed per record and locked.
+
+    Parameters
+    ----------
+    path : Path
+        The journal file.
+    header : dict
+        Its header: ``format``, ``key``, ``fingerprint`` and descriptive fields.
+    resume : bool
+        Keep the usable records of an existing journal with the same fingerprint.
+    overwrite : bool
+        Start afresh even if the file holds records.
+    planned : mapping, optional
+        ``(battery, run_id) -> run_hash`` of the runs planned now; records of
+        other runs, or of other parameters, are not kept.
+    """
+
+    def __init__(self, path: Path, header: dict, resume: bool, overwrite: bool,
+                 planned: Mapping[tuple[str, str], str] | None = None) -> None:
         self.path = path
         self.records: dict[tuple[str, str], dict] = {}
-        path.parent.mkdir(parents=True, exist_ok=True)
+        #: What was skipped when the journal was read back (one line each).
+        self.warnings: list[str] = []
+        self._planned = planned
+        self._key = header.get("key")
+        from papwc.output import make_folder
+
+        make_folder(path.parent)
+        if path.exists() and not path.is_file():
+            raise OutputError(f"cannot write the journal {str(path)!r}: a folder is in the "
+                              "way")
         lock_path = path.with_name(path.name + ".lock")
-        self._lock = open(lock_path, "a")  # held until close()
+        try:
+            self._lock = open(lock_path, "a")  # held until close()
+        except OSError as exc:
+            raise _os_error(lock_path, "open the lock file", exc) from exc
         try:
             fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -71,42 +210,91 @@ class Journal:
             self._lock.close()
             raise
 
+    def _read(self) -> tuple[dict | None, list[dict]]:
+        try:
+            header, records, _ = read_journal(self.path, self.warnings, strict=True)
+        except OSError as exc:
+            raise _os_error(self.path, "read the journal", exc) from exc
+        return header, records
+
     def _open(self, header: dict, resume: bool, overwrite: bool) -> None:
         path = self.path
+        kept: list[dict] = []
         if path.exists() and resume:
-            old, records, good = read_journal(path)
-            if old is not None and old.get("fingerprint") != header["fingerprint"]:
-                why = ("the plant FMU differs" if old.get("fmu_sha256") != header["fmu_sha256"]
-                       else "the battery files resolve to other runs")
-                raise BatteryError(f"{path}: cannot resume: {why} than when it was started; "
-                                   "use another --out, or --overwrite to start again")
+            old, records = self._read()
             if old is not None:
-                with open(path, "r+b") as f:
-                    f.truncate(good)
-                    f.flush()
-                    os.fsync(f.fileno())
-                self.records = {(r["battery"], r["run_id"]): r for r in records}
-                self._file = open(path, "a", encoding="utf-8")
-                return
-        elif path.exists() and not overwrite and read_journal(path)[1]:
-            _, records, _ = read_journal(path)
-            raise BatteryError(f"{path.parent} already holds a battery journal "
-                               f"({len(records)} runs); pass --resume to continue it or "
-                               "--overwrite to start again")
+                if old.get("format") != JOURNAL_FORMAT:
+                    raise BatteryError(
+                        f"{path}: cannot resume: the journal was written by another papwc "
+                        f"(journal format {old.get('format')!r}, this one writes "
+                        f"{JOURNAL_FORMAT}); use another --out, or --overwrite to start again")
+                if old.get("fingerprint") != header["fingerprint"]:
+                    why = ("the plant FMU's model (its GUID) or papwc's code differs"
+                           if old.get("key") != header.get("key")
+                           else "the battery files resolve to other runs")
+                    raise BatteryError(
+                        f"{path}: cannot resume: {why} than when it was started; use another "
+                        "--out, or --overwrite to start again")
+            elif records:
+                self.warnings.append(f"{path}: the header line is unreadable; the records "
+                                     "that carry this battery's key are kept")
+            kept = [r for r in records if self._usable(r)]
+        elif path.exists() and not overwrite:
+            _, records = self._read()
+            if records:
+                raise BatteryError(f"{path.parent} already holds a battery journal "
+                                   f"({len(records)} runs); pass --resume to continue it or "
+                                   "--overwrite to start again")
+        self.records = {(r["battery"], r["run_id"]): r for r in kept}
+        # Write the header and the records kept (compacted) into a new file.
         tmp = path.with_name(path.name + ".tmp")
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(json.dumps(header) + "\n")
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-        self._file = open(path, "a", encoding="utf-8")
+        try:
+            with open(tmp, "w", encoding="utf-8") as f:
+                f.write(json.dumps(header) + "\n")
+                for record in self.records.values():
+                    f.write(json.dumps(record) + "\n")
+                f.flush()
+                os.fsync(f.fileno())
+            os.replace(tmp, path)
+            self._file = open(path, "a", encoding="utf-8")
+        except OSError as exc:
+            raise _os_error(path, "write the journal", exc) from exc
+
+    def _usable(self, record: dict) -> bool:
+        """Whether a well-formed record can stand for its run now (else it is recomputed)."""
+        where = f"{self.path}: run {record['battery']} {record['run_id']}"
+        if record.get("key") != self._key:
+            self.warnings.append(f"{where}: computed with another FMU model or papwc code; "
+                                 "computed again")
+            return False
+        if self._planned is not None:
+            want = self._planned.get((record["battery"], record["run_id"]))
+            if want is None:
+                self.warnings.append(f"{where}: not a run of these batteries; dropped")
+                return False
+            if want != record["run_hash"]:
+                self.warnings.append(f"{where}: its parameters differ; computed again")
+                return False
+        if record.get("transient"):
+            self.warnings.append(f"{where}: had {record['message'][:80]!r}; computed again")
+            return False
+        return True
 
     def append(self, record: dict) -> None:
-        """Persist one record (flush and fsync) and keep it."""
-        self._file.write(json.dumps(record) + "\n")
-        self._file.flush()
-        os.fsync(self._file.fileno())
-        self.records[(record["battery"], record["run_id"])] = record
+        """Persist one record (flush and fsync) and keep it.
+
+        Ctrl-C is held back while the record is written, so that it is never
+        half written nor written but not counted.
+        """
+        line = json.dumps(record) + "\n"
+        with _ctrl_c_held():
+            try:
+                self._file.write(line)
+                self._file.flush()
+                os.fsync(self._file.fileno())
+            except OSError as exc:
+                raise _os_error(self.path, "append to the journal", exc) from exc
+            self.records[(record["battery"], record["run_id"])] = record
 
     def close(self) -> None:
         """Close the file and release the lock."""

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from papwc.battery.schema import Battery, is_number
 from papwc.controllers.settings import ControllerSettings
 from papwc.errors import ScenarioError
+from papwc.limits import MAX_RUNS, MAX_STEPS, check_steps
 from papwc.master import Maneuver
 from papwc.scenario import (
     PLANT_FIELDS,
@@ -138,13 +139,42 @@ def _apply_draws(battery: Battery, data: dict, draw: int) -> None:
             _set_field(data, d.path, d.value(u, nominal, of_value), table)
 
 
-def plan_runs(batteries: list[Battery]) -> list[RunSpec]:
+def check_size(batteries: list[Battery], max_runs: int = MAX_RUNS) -> None:
+    """Raise ScenarioError if the batteries have more runs (or grid points) than ``max_runs``.
+
+    Checked from the tables alone, before any run is resolved.
+    """
+    total = 0
+    for battery in batteries:
+        grid, runs = battery.grid_points, battery.n_runs
+        if grid > max_runs:
+            sizes = " x ".join(str(len(v)) for _, v in battery.sweep)
+            raise ScenarioError(f"{battery.source}: [sweep] has {sizes} = {grid} grid points, "
+                                f"over the limit of {max_runs} runs; pass --max-runs {grid} "
+                                "to allow it")
+        if runs > max_runs:
+            raise ScenarioError(f"{battery.source}: {grid} grid point(s) x {battery.n} draw(s) "
+                                f"= {runs} runs, over the limit of {max_runs} runs; pass "
+                                f"--max-runs {runs} to allow it")
+        total += runs
+    if total > max_runs:
+        raise ScenarioError(f"the batteries have {total} runs together, over the limit of "
+                            f"{max_runs} runs; pass --max-runs {total} to allow it")
+
+
+def plan_runs(batteries: list[Battery], max_runs: int = MAX_RUNS,
+              max_steps: int = MAX_STEPS) -> list[RunSpec]:
     """Every run of the batteries, resolved and validated, in result order.
+
+    A run whose parameters are invalid gets ``error`` (it is recorded, not run).
 
     Raises
     ------
     ScenarioError
-        If two batteries have the same name or a draw cannot be resolved.
+        If two batteries have the same name, a draw cannot be resolved, the
+        batteries have more than ``max_runs`` runs, a valid run would take more
+        than ``max_steps`` communication steps, or every run of a battery is
+        invalid.
     """
     names = [b.name for b in batteries]
     for name in names:
@@ -152,8 +182,10 @@ def plan_runs(batteries: list[Battery]) -> list[RunSpec]:
             sources = [b.source for b in batteries if b.name == name]
             raise ScenarioError(f"{sources[1]}: field 'name' = {name!r} is also the name of "
                                 f"{sources[0]}; battery names must differ")
+    check_size(batteries, max_runs)
     runs = []
     for bi, battery in enumerate(batteries):
+        first = len(runs)
         grid = list(itertools.product(*(values for _, values in battery.sweep)))
         gw = max(1, len(str(len(grid) - 1)))
         dw = max(3, len(str(battery.n - 1)))
@@ -169,9 +201,18 @@ def plan_runs(batteries: list[Battery]) -> list[RunSpec]:
                     [f"d{di:0{dw}d}"] if battery.monte_carlo else [])
                 run_id = "-".join(ids) or "nominal"
                 spec = RunSpec(battery.name, run_id, (bi, gi, di), data, _hash(data))
+                where = f"{battery.source} run {run_id}"
                 try:
-                    parse_scenario(data, f"{battery.source} run {run_id}")
+                    scenario = parse_scenario(data, where)
                 except ScenarioError as exc:
                     spec.error = str(exc)
+                else:
+                    m = scenario.maneuver
+                    check_steps(where, len(scenario.controllers), m.iterations, m.duration,
+                                m.T, max_steps)
                 runs.append(spec)
+        mine = runs[first:]
+        if mine and all(spec.error for spec in mine):
+            raise ScenarioError(f"every run of the battery ({len(mine)}) is invalid; the "
+                                f"first: {mine[0].error}")
     return runs

@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 
 from papwc.battery.plan import RunSpec, controller_tables, get_field
 from papwc.battery.schema import Battery
 from papwc.controllers.settings import ControllerSettings
+from papwc.output import save_figure
 from papwc.scenario import (
     PLANT_FIELDS,
     controller_label,
@@ -68,7 +68,7 @@ def result_rows(batteries: list[Battery], runs: list[RunSpec], records: dict) ->
                 row["success"] = bool(ok and abs(it["final_error_m"]) <= tol
                                       and not it["limit_cycle"])
                 row["status"] = "ok" if ok else "error"
-                row["message"] = it["error"]
+                row["message"] = it["error"] or c.get("warning", "")
                 rows.append(row)
     return rows
 
@@ -192,15 +192,13 @@ def plot_final_errors(battery: Battery, rows: list[dict], path: Path) -> None:
     if last:
         ax.legend(loc="lower right", fontsize=8)
     fig.tight_layout()
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, path)
+    save_figure(fig, path, dpi=110)
 
 
 def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], records: dict,
                   fmu_sha256: str) -> list[Path]:
     """Write results.csv, runs.csv, summary.md and the plots from the records."""
-    from papwc.output import write_rows
+    from papwc.output import write_rows, write_text
 
     rows = result_rows(batteries, runs, records)
     varied = list(dict.fromkeys(p for b in batteries for p in b.varied))
@@ -217,9 +215,7 @@ def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], reco
     run_columns = ["battery", "run_id", "run_hash", "status", "message"]
     run_columns += list(dict.fromkeys(k for r in run_rows for k in r if k not in run_columns))
     write_rows(paths[1], run_rows, run_columns)
-    tmp = paths[2].with_name("summary.md.tmp")
-    tmp.write_text(summary_markdown(batteries, runs, rows, fmu_sha256), encoding="utf-8")
-    os.replace(tmp, paths[2])
+    write_text(paths[2], summary_markdown(batteries, runs, rows, fmu_sha256))
     for battery in batteries:
         png = out / f"final_error_{battery.name}.png"
         plot_final_errors(battery, rows, png)

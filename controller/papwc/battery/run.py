@@ -7,7 +7,7 @@ import json
 import os
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from papwc.battery.engines import default_workers, run_dask, run_local
@@ -17,6 +17,7 @@ from papwc.battery.report import write_outputs
 from papwc.battery.schema import Battery
 from papwc.battery.worker import error_record
 from papwc.errors import BatteryError
+from papwc.limits import MAX_RUNS, MAX_STEPS
 
 # --- the whole battery -----------------------------------------------------------------------
 
@@ -37,6 +38,8 @@ class BatteryOutcome:
         Files written.
     seconds : float
         Wall time of the call.
+    records : dict
+        The journal record of every run, by (battery, run id).
     run_seconds : float
         Wall time of the computing (starting the workers or connecting to the
         cluster, up to the last run finished).
@@ -48,6 +51,23 @@ class BatteryOutcome:
     files: list[Path]
     seconds: float
     run_seconds: float = 0.0
+    records: dict = field(default_factory=dict)
+
+
+class BatteryInterrupted(KeyboardInterrupt):
+    """Ctrl-C stopped a battery; the runs that finished are in the journal.
+
+    Attributes
+    ----------
+    done, total : int
+        Runs in the journal, runs of the batteries.
+    journal : Path
+        The journal file.
+    """
+
+    def __init__(self, done: int, total: int, journal: Path) -> None:
+        super().__init__(f"{done} of {total} runs are in {journal}")
+        self.done, self.total, self.journal = done, total, journal
 
 
 def _sha256(path: Path) -> str:
@@ -56,6 +76,32 @@ def _sha256(path: Path) -> str:
         for chunk in iter(lambda: f.read(1 << 20), b""):
             h.update(chunk)
     return h.hexdigest()
+
+
+#: Modules whose code computes a run in a worker (their digest keys the journal).
+_RESULT_CODE = ("model", "controllers", "master", "runner.py", "scenario.py",
+                "battery/worker.py", "battery/plan.py")
+
+
+def code_digest() -> str:
+    """SHA-256 of the papwc sources that compute a battery run (not the FMU's)."""
+    root = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256()
+    for name in _RESULT_CODE:
+        path = root / name
+        files = sorted(path.rglob("*.py")) if path.is_dir() else [path]
+        for file in files:
+            h.update(file.relative_to(root).as_posix().encode() + b"\0")
+            h.update(file.read_bytes() + b"\0")
+    return h.hexdigest()
+
+
+def result_key(fmu_guid: str) -> str:
+    """Key of what determines a run's results: the FMU's model identity and papwc's code."""
+    from papwc import __version__
+
+    text = json.dumps([fmu_guid, __version__, code_digest()])
+    return hashlib.sha256(text.encode()).hexdigest()[:32]
 
 
 def run_battery(
@@ -67,6 +113,8 @@ def run_battery(
     resume: bool = False,
     overwrite: bool = False,
     progress: bool = True,
+    max_runs: int = MAX_RUNS,
+    max_steps: int = MAX_STEPS,
 ) -> BatteryOutcome:
     """Run batteries and write their results into ``out``.
 
@@ -88,10 +136,18 @@ def run_battery(
         Start afresh even if ``out`` holds a journal.
     progress : bool
         Show a progress bar on stderr (only if stderr is a terminal).
+    max_runs, max_steps : int
+        Limits of the runs of the batteries and of the steps of one run
+        (checked before any run).
 
     Returns
     -------
     BatteryOutcome
+
+    Raises
+    ------
+    BatteryInterrupted
+        On Ctrl-C: the runs that finished are in the journal (``--resume``).
     """
     start = time.perf_counter()
     out = Path(out)
@@ -101,19 +157,26 @@ def run_battery(
     from fmpy import read_model_description
 
     try:
-        cosim = read_model_description(str(fmu)).coSimulation
+        md = read_model_description(str(fmu))
     except Exception as exc:  # noqa: BLE001 - fmpy raises plain Exceptions for broken files
         raise BatteryError(f"{fmu}: not a readable FMU: {exc}") from exc
-    if cosim is None:
+    if md.coSimulation is None:
         raise BatteryError(f"{fmu}: not a Co-Simulation FMU")
-    runs = plan_runs(batteries)
+    runs = plan_runs(batteries, max_runs=max_runs, max_steps=max_steps)
     digest = _sha256(fmu)
+    key = result_key(md.guid)
     fingerprint = hashlib.sha256(json.dumps(
-        [digest] + [[s.battery, s.run_id, s.run_hash] for s in runs]).encode()).hexdigest()
-    header = {"type": "header", "format": JOURNAL_FORMAT, "fingerprint": fingerprint,
-              "fmu_sha256": digest, "batteries": [[b.name, b.source] for b in batteries],
-              "runs": len(runs)}
-    journal = Journal(out / JOURNAL_NAME, header, resume, overwrite)
+        [key] + [[s.battery, s.run_id, s.run_hash] for s in runs]).encode()).hexdigest()
+    header = {"type": "header", "format": JOURNAL_FORMAT, "key": key,
+              "fingerprint": fingerprint, "fmu_guid": md.guid, "fmu_sha256": digest,
+              "batteries": [[b.name, b.source] for b in batteries], "runs": len(runs)}
+    journal = Journal(out / JOURNAL_NAME, header, resume, overwrite,
+                      {(s.battery, s.run_id): s.run_hash for s in runs})
+    for warning in journal.warnings[:20]:
+        print(f"warning: {warning}", file=sys.stderr)
+    if len(journal.warnings) > 20:
+        print(f"warning: ... and {len(journal.warnings) - 20} more journal lines skipped",
+              file=sys.stderr)
     computed = 0
     try:
         todo = [s for s in runs if (s.battery, s.run_id) not in journal.records]
@@ -130,11 +193,17 @@ def run_battery(
             bar.update(1)
 
         with bar:
-            sources = {b.name: b.source for b in batteries}
+            by_name = {b.name: b for b in batteries}
+
+            def task(spec) -> dict:
+                battery = by_name[spec.battery]
+                return {**spec.task(battery.source), "key": key,
+                        "timeout": battery.run_timeout}
+
             for spec in todo:
                 if spec.error:
-                    done(error_record(spec.task(sources[spec.battery]), spec.error))
-            tasks = [s.task(sources[s.battery]) for s in todo if not s.error]
+                    done(error_record(task(spec), spec.error))
+            tasks = [task(s) for s in todo if not s.error]
             run_start = time.perf_counter()
             if tasks:
                 if scheduler:
@@ -144,10 +213,12 @@ def run_battery(
                     run_local(tasks, fmu, max(1, min(n, len(tasks))), done)
             run_seconds = time.perf_counter() - run_start
         records = journal.records
+    except KeyboardInterrupt:
+        raise BatteryInterrupted(len(journal.records), len(runs), journal.path) from None
     finally:
         journal.close()
     files = write_outputs(out, batteries, runs, records, digest)
     failed = [(s.battery, s.run_id, records[(s.battery, s.run_id)]["message"]) for s in runs
               if records[(s.battery, s.run_id)]["status"] != "ok"]
     return BatteryOutcome(len(runs), computed, failed, files, time.perf_counter() - start,
-                          run_seconds)
+                          run_seconds, records)

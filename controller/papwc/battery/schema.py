@@ -10,9 +10,13 @@ import os
 from dataclasses import dataclass, field
 from statistics import NormalDist
 
-from papwc.controllers.settings import ControllerSettings
+from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings
 from papwc.errors import ScenarioError
+from papwc.limits import DEFAULT_RUN_TIMEOUT
+from papwc.model.maneuver import MANEUVER_VARIABLES
+from papwc.model.plant import PLANT_PARAMETERS
 from papwc.model.settings import CONTROLLER_SETTINGS
+from papwc.model.variables import by_name
 from papwc.scenario import (
     MANEUVER_FIELDS,
     PLANT_FIELDS,
@@ -87,6 +91,8 @@ class Battery:
         Seed of the draws.
     success_tolerance : float or None
         Error band of a success, m; ``None``: each controller's tolerance.
+    run_timeout : float
+        Time limit of one run, s (``[battery] run_timeout``).
     """
 
     name: str
@@ -99,6 +105,17 @@ class Battery:
     seed: int = 0
     monte_carlo: bool = False
     success_tolerance: float | None = None
+    run_timeout: float = DEFAULT_RUN_TIMEOUT
+
+    @property
+    def grid_points(self) -> int:
+        """Points of the sweep's grid (1 without a sweep)."""
+        return math.prod(len(values) for _, values in self.sweep)
+
+    @property
+    def n_runs(self) -> int:
+        """Runs of the battery: grid points x draws."""
+        return self.grid_points * self.n
 
     @property
     def varied(self) -> list[str]:
@@ -177,10 +194,15 @@ def parse_battery(data: dict, source: str) -> Battery:
         if not isinstance(values, list) or not values:
             raise ScenarioError(f"{source}: [sweep] field {path!r} = {values!r}: must be a "
                                 "non-empty array of values")
+        var = field_variable(path)
         for v in values:
             if not (is_number(v) or isinstance(v, (str, bool))):
                 raise ScenarioError(f"{source}: [sweep] field {path!r}: value {v!r} must be "
                                     "a number, a string, true or false")
+            must = var.check(v)
+            if must is not None:
+                raise ScenarioError(f"{source}: [sweep] field {path!r}: value "
+                                    f"{var.message(v, must)}")
         battery.sweep.append((path, list(values)))
 
     mc = data.get("monte_carlo")
@@ -214,14 +236,32 @@ def parse_battery(data: dict, source: str) -> Battery:
     if not isinstance(opts, dict):
         raise ScenarioError(f"{source}: [battery] must be a table")
     for key, value in opts.items():
+        if key == "run_timeout":
+            if not (is_number(value) and 0.0 < value <= MAX_RUN_TIMEOUT):
+                raise ScenarioError(f"{source}: [battery] field 'run_timeout' = {value!r}: "
+                                    f"must satisfy 0 < run_timeout <= {MAX_RUN_TIMEOUT:g} s")
+            battery.run_timeout = float(value)
+            continue
         if key != "success_tolerance":
             raise ScenarioError(f"{source}: [battery] unknown field {key!r}; allowed: "
-                                "success_tolerance")
-        if not (is_number(value) and math.isfinite(value) and value >= 0.0):
+                                "success_tolerance, run_timeout")
+        if not (is_number(value) and math.isfinite(value) and 0.0 <= value <= 1.0):
             raise ScenarioError(f"{source}: [battery] field 'success_tolerance' = {value!r}: "
-                                "must be a number >= 0 (m)")
+                                "must satisfy 0 <= success_tolerance <= 1 m")
         battery.success_tolerance = float(value)
     return battery
+
+
+#: Largest ``[battery] run_timeout``, s (a week).
+MAX_RUN_TIMEOUT = 7 * 24 * 3600.0
+_FIELD_TABLES = {"plant": by_name(PLANT_PARAMETERS), "maneuver": by_name(MANEUVER_VARIABLES),
+                 "controller": SETTINGS_BY_NAME}
+
+
+def field_variable(path: str):
+    """The model layer's Variable of a checked field path (``plant.m``, ``controller.1.K_c``)."""
+    parts = path.split(".")
+    return _FIELD_TABLES[parts[0]][parts[-1]]
 
 
 def _parse_distribution(source: str, path: str, spec, n_ctrl: int) -> Distribution:

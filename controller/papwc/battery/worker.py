@@ -88,27 +88,40 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         caught and recorded, never raised.
     """
     from papwc.master import summarize
-    from papwc.runner import run_scenario
+    from papwc.runner import RunTimeout, run_scenario
 
     start = time.perf_counter()
     record = {"type": "run", "battery": task["battery"], "run_id": task["run_id"],
               "run_hash": task["run_hash"], "params": task["data"], "status": "ok",
               "message": "", "controllers": []}
+    if task.get("key"):
+        record["key"] = task["key"]
     try:
         scenario = parse_scenario(task["data"], f"{task['source']} run {task['run_id']}")
-        for result in run_scenario(scenario, "fmu", fmu_path, unzip_dir=unzip_dir):
+        results = run_scenario(scenario, "fmu", fmu_path, unzip_dir=unzip_dir,
+                               timeout=task.get("timeout"))
+        for result in results:
             settings = result.settings
             iterations = []
             for trace in result.traces:
                 metrics = summarize(trace, settings.tolerance)
                 iterations.append({"iteration": trace.iteration, **metrics,
                                    "error": trace.error})
-            record["controllers"].append({
-                "label": result.label, "kind": settings.kind, "tolerance": settings.tolerance,
-                "error": result.error, "iterations": iterations})
+            entry = {"label": result.label, "kind": settings.kind,
+                     "tolerance": settings.tolerance, "error": result.error,
+                     "iterations": iterations}
+            warning = scenario.warnings_of(result.label)
+            if warning:
+                entry["warning"] = warning
+            record["controllers"].append(entry)
             if result.error and record["status"] == "ok":
                 record["status"] = "error"
                 record["message"] = f"{result.label}: {result.error}"
+        warnings = "; ".join(f"{label}: {text}" for label, text in scenario.warnings)
+        if warnings and record["status"] == "ok":
+            record["message"] = "warning: " + warnings
+    except RunTimeout as exc:
+        record.update(status="error", message=str(exc), controllers=[], transient=True)
     except Exception as exc:  # noqa: BLE001 - a failing run is recorded, the battery goes on
         record["status"] = "error"
         record["message"] = f"{type(exc).__name__}: {exc}"
@@ -116,11 +129,20 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
     return record
 
 
-def error_record(task: dict, message: str) -> dict:
-    """The journal record of a run that could not run (``task`` from :meth:`RunSpec.task`)."""
-    return {"type": "run", "battery": task["battery"], "run_id": task["run_id"],
-            "run_hash": task["run_hash"], "params": task["data"], "status": "error",
-            "message": message, "controllers": [], "elapsed_s": 0.0}
+def error_record(task: dict, message: str, transient: bool = False) -> dict:
+    """The journal record of a run that could not run (``task`` from :meth:`RunSpec.task`).
+
+    ``transient``: the cause lies in the circumstances (a time limit, a worker
+    that died), not in the run's inputs; ``--resume`` computes the run again.
+    """
+    record = {"type": "run", "battery": task["battery"], "run_id": task["run_id"],
+              "run_hash": task["run_hash"], "params": task["data"], "status": "error",
+              "message": message, "controllers": [], "elapsed_s": 0.0}
+    if task.get("key"):
+        record["key"] = task["key"]
+    if transient:
+        record["transient"] = True
+    return record
 
 
 _LOCAL: dict[str, str] = {}
@@ -166,6 +188,24 @@ def init_local_worker(fmu_path: str, owner: int) -> None:
 def run_in_local_worker(task: dict) -> dict:
     """Run one task in a local worker process (the FMU extracted by its initializer)."""
     return execute_run(task, _LOCAL["fmu_path"], _LOCAL["unzip_dir"])
+
+
+def local_worker_main(conn, fmu_path: str, owner: int) -> None:
+    """A local worker process: extract the FMU, say ``ready``, then run the tasks it is sent.
+
+    Each message received is a task (from :meth:`RunSpec.task`) or None (exit);
+    each task is answered with its journal record.
+    """
+    init_local_worker(fmu_path, owner)
+    conn.send(("ready", os.getpid()))
+    while True:
+        try:
+            task = conn.recv()
+        except (EOFError, OSError):
+            return
+        if task is None:
+            return
+        conn.send(("done", run_in_local_worker(task)))
 
 
 def run_in_dask_worker(tasks: list[dict], fmu_bytes: bytes, digest: str) -> list[dict]:

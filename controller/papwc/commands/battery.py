@@ -6,6 +6,8 @@ The battery file syntax is described in :mod:`papwc.battery`.
 from __future__ import annotations
 
 import argparse
+import re
+import shlex
 import sys
 from pathlib import Path
 
@@ -26,8 +28,11 @@ examples:
 writes into the output folder: results.csv (one row per run, controller and
 iteration), runs.csv (every resolved parameter per run), summary.md, the plots
 final_error_<battery>.png, and journal.jsonl (finished runs, for --resume).
-exit code: 0 if every run succeeded in running, 1 if a run has status error,
-2 if a battery file or an option is wrong.
+exit code: 0 if every run succeeded in running, 1 if a run has status error
+(or a file cannot be written), 2 if a battery file or an option is wrong, 130
+if interrupted (Ctrl-C: the runs that finished are in the journal; the message
+says how to resume). A run longer than [battery] run_timeout (default 600 s)
+is stopped and recorded as "timed out"; --resume computes it again.
 """
 
 
@@ -49,23 +54,66 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="start afresh even if DIR holds the journal of a battery")
     parser.add_argument("--quiet", action="store_true",
                         help="no progress bar and no report on stdout")
+    from papwc.commands.run import add_max_steps, positive_int
+    from papwc.limits import MAX_RUNS
+
+    parser.add_argument("--max-runs", type=positive_int, default=MAX_RUNS, metavar="N",
+                        help="refuse batteries of more than N runs or grid points together "
+                             f"(default {MAX_RUNS})")
+    add_max_steps(parser)
+
+
+#: Largest ``--workers`` per core this process may run on.
+WORKERS_PER_CORE = 4
+#: A Dask scheduler address: ``[tcp|tls|ws|wss|ucx]://HOST:PORT`` or ``HOST:PORT``.
+SCHEDULER_ADDRESS = re.compile(r"((tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9._-]+)"
+                               r":[0-9]{1,5}")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the batteries; return 0, or 1 if any run has status error."""
     from papwc.battery import BatteryError, load_battery, run_battery
+    from papwc.battery.engines import default_workers
+    from papwc.battery.run import BatteryInterrupted
     from papwc.runner import ensure_plant_fmu
 
-    if args.workers is not None and args.workers < 1:
-        raise BatteryError(f"--workers {args.workers}: must be >= 1")
+    if args.workers is not None:
+        most = WORKERS_PER_CORE * default_workers()
+        if not 1 <= args.workers <= most:
+            raise BatteryError(f"--workers {args.workers}: must be from 1 to {most} "
+                               f"({WORKERS_PER_CORE} per core)")
+    if args.scheduler is not None and not SCHEDULER_ADDRESS.fullmatch(args.scheduler):
+        raise BatteryError(f"--scheduler {args.scheduler!r}: not a Dask scheduler address; "
+                           "write tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786)")
     batteries = [load_battery(f) for f in args.files]
+    from papwc.battery.plan import check_size
+
+    check_size(batteries, args.max_runs)
     out = args.out
     if out is None:
         out = Path("results") / (batteries[0].name if len(batteries) == 1 else "battery")
     fmu = ensure_plant_fmu(args.fmu, out)
-    outcome = run_battery(batteries, out, fmu, workers=args.workers, scheduler=args.scheduler,
-                          resume=args.resume, overwrite=args.overwrite,
-                          progress=not args.quiet)
+    try:
+        outcome = run_battery(batteries, out, fmu, workers=args.workers,
+                              scheduler=args.scheduler, resume=args.resume,
+                              overwrite=args.overwrite, progress=not args.quiet,
+                              max_runs=args.max_runs, max_steps=args.max_steps)
+    except BatteryInterrupted as stop:
+        again = " ".join(shlex.quote(str(f)) for f in args.files)
+        extra = "".join(f" {flag} {shlex.quote(str(value))}" for flag, value in (
+            ("--fmu", args.fmu), ("--scheduler", args.scheduler), ("--workers", args.workers))
+            if value is not None)
+        print(f"papwc battery: interrupted: {stop.done} of {stop.total} runs are in the "
+              f"journal {stop.journal}; to finish, run: papwc battery {again} --out "
+              f"{shlex.quote(str(out))}{extra} --resume", file=sys.stderr)
+        raise
+    warned = sum(1 for r in outcome.records.values()
+                 if r["status"] == "ok" and r["message"].startswith("warning:"))
+    if warned:
+        first = next(r for r in outcome.records.values()
+                     if r["status"] == "ok" and r["message"].startswith("warning:"))
+        print(f"warning: {warned} run(s) have warnings (see results.csv), e.g. "
+              f"{first['battery']} {first['run_id']}: {first['message'][9:]}", file=sys.stderr)
     if not args.quiet:
         reused = outcome.runs - outcome.computed
         print(f"{outcome.runs} runs ({outcome.computed} computed, {reused} from the journal) "

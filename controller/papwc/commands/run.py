@@ -11,6 +11,13 @@ HELP = "run a scenario file (TOML) and write summary.csv, traces and plots"
 EPILOG = """examples:
   papwc run scenarios/paper.toml --out results/paper
   papwc run scenarios/long_move.toml --plant physics
+
+each controller's traces and summary rows are written as it finishes; until
+everything is written (and after Ctrl-C or an error) DIR holds a file
+INCOMPLETE saying what is missing. A new run into DIR first removes what an
+earlier run wrote there (summary.csv, trace_*_it*.csv, the plots), nothing else.
+exit code: 0 ok, 1 a controller's run failed or a file cannot be written,
+2 the scenario file or an option is wrong, 130 interrupted (Ctrl-C).
 """
 
 
@@ -23,18 +30,57 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="step FrictionPlant.fmu through the master (default) or the "
                              "physics in-process")
     add_fmu_option(parser)
+    add_max_steps(parser)
+
+
+def add_max_steps(parser: argparse.ArgumentParser) -> None:
+    """The option ``--max-steps`` (shared with ``papwc battery``)."""
+    from papwc.limits import MAX_STEPS
+
+    parser.add_argument("--max-steps", type=positive_int, default=MAX_STEPS, metavar="N",
+                        help="refuse a run of more than N communication steps (all "
+                             f"controllers and iterations; default {MAX_STEPS})")
+
+
+def positive_int(text: str) -> int:
+    """An argparse type: a whole number >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{text} must be >= 1")
+    return value
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the scenario; return 0, or 1 if a controller's run failed."""
-    from papwc.runner import ensure_plant_fmu, format_table, run_scenario, write_results
+    import sys
+
+    from papwc.limits import check_steps
+    from papwc.runner import (
+        ResultsFolder,
+        ensure_plant_fmu,
+        format_table,
+        run_into_folder,
+        run_scenario,
+    )
     from papwc.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
+    m = scenario.maneuver
+    check_steps(str(args.scenario), len(scenario.controllers), m.iterations, m.duration, m.T,
+                args.max_steps)
+    for label, message in scenario.warnings:
+        print(f"papwc run: warning: {scenario.source}: {label}: {message}", file=sys.stderr)
     out = Path(args.out) if args.out else Path("results") / scenario.name
+    warnings = {label: scenario.warnings_of(label) for label in scenario.labels}
     fmu = ensure_plant_fmu(args.fmu, out) if args.plant == "fmu" else None
-    results = run_scenario(scenario, args.plant, fmu)
-    rows = write_results(results, out)
+    folder = ResultsFolder(out, scenario.labels, warnings)
+    folder.start()
+    results = run_into_folder(folder, lambda progress: run_scenario(
+        scenario, args.plant, fmu, progress=progress))
+    rows = run_into_folder(folder, lambda progress: folder.finish())
     print(format_table(rows))
     print(f"wrote {out / 'summary.csv'}, {len(rows)} rows, traces and plots in {out}")
     failed = [r for r in results if r.error]

@@ -213,7 +213,12 @@ class PulseModelEstimator:
         out = []
         for n, f, d in self.pulses:
             sigma = _SIGMA_REL * d + self.x_resolution + _SIGMA_MIN
-            r = (pulse_displacement(f, n * self.T, m, f_c, c) - d) / sigma
+            try:
+                r = (pulse_displacement(f, n * self.T, m, f_c, c) - d) / sigma
+            except (ValueError, OverflowError, ZeroDivisionError):
+                # A difference quotient at theta_3 = 0 evaluates c < 0, where coasting
+                # may never end (log of a negative number): no residual there.
+                return None
             if not math.isfinite(r):
                 return None
             out.append(r)

@@ -13,10 +13,12 @@ rest, the same way in every FMU:
   ``doStep`` returns Discard repeating them (an exception would be fmi2Fatal
   with pythonfmu 0.7.0, which frees the instance and aborts libcosim);
 - refuses a parameter or an output set after initialization (logged, value
-  kept), and any step after ``fmi2Terminate``;
+  kept), and any input set or step after ``fmi2Terminate``;
 - ``doStep`` returns Discard with a logged reason and the state untouched when
   the model's step refuses (a non-finite input, a bad step size);
 - keeps the time of the last communication point;
+- writes ``%`` in log messages as ``%%`` (a host formats an FMI message as a
+  printf format string; a value holding ``%n`` would otherwise be read as one);
 - gets, sets, serializes and deserializes the state; a state that does not
   parse or does not belong to this FMU is refused before anything changes,
   and the instance keeps working.
@@ -100,6 +102,12 @@ class CheckedSlave(Fmi2Slave):
         self._typed = {kind: {vr: v for vr, v in self.vars.items() if isinstance(v, cls)}
                        for kind, cls in _KINDS.items()}
 
+    def log(self, msg: str, status: Fmi2Status = Fmi2Status.ok, category: str | None = None,
+            debug: Any = None) -> None:
+        """Log ``msg`` with ``%`` written ``%%``: an FMI message is a printf format string
+        (a host formats it), so a value holding ``%`` must not be read as a conversion."""
+        super().log(msg.replace("%", "%%"), status, category)
+
     # -- declarations ------------------------------------------------------------------------
     def _declare(self, var: Variable):
         causality = Fmi2Causality[var.causality]
@@ -114,6 +122,8 @@ class CheckedSlave(Fmi2Slave):
         elif var.causality == "output":
             kwargs["initial"] = Fmi2Initial[var.initial or "exact"]
             kwargs["setter"] = self._output_setter(var)
+        elif var.causality == "input":
+            kwargs["setter"] = self._input_setter(var)
         getter = self.output_getter(var)
         if getter is not None:
             kwargs["getter"] = getter
@@ -139,6 +149,18 @@ class CheckedSlave(Fmi2Slave):
             self.parameter_set(name)
 
         return set_parameter
+
+    def _input_setter(self, var: Variable):
+        name = var.name
+
+        def set_input(value: Any) -> None:
+            if self._terminated:
+                self.log(f"{self.instance_name}: input {name} cannot be set after "
+                         f"fmi2Terminate: {value!r} refused", Fmi2Status.error)
+                return
+            setattr(self, name, value)
+
+        return set_input
 
     def _output_setter(self, var: Variable):
         name = var.name
@@ -312,6 +334,8 @@ class CheckedSlave(Fmi2Slave):
         if "invalid" in state and len(state) == 1:
             raise ValueError(str(state["invalid"]))
         owner = state.get(_STATE_KEY)
+        if owner is None:
+            raise ValueError(f"not a state of {type(self).__name__} (it names no model)")
         if owner != type(self).__name__:
             raise ValueError(f"the state belongs to {owner!r}, not to {type(self).__name__!r}")
         fields = state.get("fields")
@@ -327,8 +351,24 @@ class CheckedSlave(Fmi2Slave):
                                             and not isinstance(value, bool))
             if not ok or (want is int and isinstance(value, bool)):
                 raise ValueError(f"field {name} = {value!r} is not a {var.type}")
+            if want is float and var.causality != "input" and not (
+                    math.isfinite(value) or (var.inf_ok and value > 0)):
+                raise ValueError(f"field {name} = {value!r} is not a finite number")
         if not isinstance(fields["time"], (int, float)) or not math.isfinite(fields["time"]):
             raise ValueError(f"field time = {fields['time']!r} is not a finite number")
+        for flag in ("_initialized", "_ready", "_terminated"):
+            if not isinstance(fields[flag], bool):
+                raise ValueError(f"field {flag} = {fields[flag]!r} is not true or false")
+        if not (isinstance(fields["_problems"], list)
+                and all(isinstance(p, str) for p in fields["_problems"])):
+            raise ValueError("field _problems is not a list of strings")
+        if fields["_ready"]:
+            params = [v for v in self.VARIABLES if v.causality == "parameter"]
+            values = {v.name: (None if v.optional and fields[v.name] == FMU_DEFAULT_SENTINEL
+                               else fields[v.name]) for v in params}
+            found = problems(params, values, self.CONSTRAINTS)
+            if found:
+                raise ValueError(f"its parameters are invalid: {found[0][1]}")
         return self.decode_state(dict(fields))
 
     @staticmethod

@@ -203,7 +203,7 @@ def complete_model_description(
                 low = min(low, FMU_DEFAULT_SENTINEL)
             if low is not None:
                 typed.set("min", xml_number(float(low) if var.type == "Real" else int(low)))
-            if var.max is not None:
+            if var.max is not None and not var.inf_ok:
                 typed.set("max", xml_number(float(var.max) if var.type == "Real"
                                             else int(var.max)))
         if var.type == "Real" and var.nominal is not None:

@@ -42,20 +42,6 @@ _LOG_KEPT = 200
 _C_TYPES = {"Real": c_double, "Integer": c_int, "Enumeration": c_int, "Boolean": c_int}
 
 
-#: The logger of each instance by its componentEnvironment key.
-_LOGGERS: dict[int, Callable[[int, Any, Any], None]] = {}
-_LOG_KEYS = itertools.count(1)
-#: The one fmi2CallbackLogger given to every FMU (made when the first FmuSlave loads).
-_DISPATCH: Any = None
-
-
-def _dispatch(environment, instance_name, status, category, message) -> None:
-    """Hand a log message to the logger of the instance it comes from."""
-    logger = _LOGGERS.get(environment or 0)
-    if logger is not None:
-        logger(status, category, message)
-
-
 def _text(value: Any) -> str:
     """A logger argument (bytes, str or NULL) as text."""
     if value is None:
@@ -63,6 +49,44 @@ def _text(value: Any) -> str:
     if isinstance(value, bytes):
         return value.decode("utf-8", errors="replace")
     return str(value)
+
+
+#: The log of every open instance, by the componentEnvironment it was instantiated with.
+_LOGS: dict[int, deque] = {}
+_ENVIRONMENTS = itertools.count(1)
+_DISPATCH: list[Any] = []
+
+
+def log_message(environment: Any, instance_name: Any, status: Any, category: Any,
+                message: Any) -> None:
+    """The fmi2CallbackLogger of every FmuSlave: append to the log of the instance.
+
+    fmpy's proxy (which formats the message with its arguments) keeps one logger
+    for the whole process, so every instance is given this one function and its
+    own ``componentEnvironment``, by which the message reaches its log. Any
+    argument may be NULL; nothing here raises into the FMU.
+    """
+    try:
+        try:
+            code = int(status)
+        except (TypeError, ValueError):
+            code = -1
+        label = _STATUS[code] if 0 <= code < len(_STATUS) else f"status {status!r}"
+        text = f"[{label}] {_text(category)}: {_text(message)}"
+        log = _LOGS.get(environment if isinstance(environment, int) else 0)
+        if log is not None:
+            log.append(text)
+    except Exception:  # noqa: BLE001 - an exception must not cross into the FMU's C code
+        pass
+
+
+def _dispatcher():
+    """The C function pointer of :func:`log_message` (made once)."""
+    if not _DISPATCH:
+        from fmpy.fmi2 import fmi2CallbackLoggerTYPE
+
+        _DISPATCH.append(fmi2CallbackLoggerTYPE(log_message))
+    return _DISPATCH[0]
 
 
 class FmuSlave:
@@ -93,6 +117,9 @@ class FmuSlave:
         increments it instead of restoring the initial state.
     """
 
+    #: Instances that returned fmi2Fatal, kept so that nothing frees them.
+    _keep_dead: list[Any] = []
+
     def __init__(
         self,
         fmu_path: str | os.PathLike,
@@ -112,6 +139,7 @@ class FmuSlave:
         self._start: dict[str, Any] = {}
         self._watched: list[str] = []
         self._owns_dir = False
+        self._fatal = False
         if not self.fmu_path.is_file():
             raise FmuError(f"FMU file {str(self.fmu_path)!r} does not exist")
         try:
@@ -150,32 +178,20 @@ class FmuSlave:
             fmi2CallbackAllocateMemoryTYPE,
             fmi2CallbackFreeMemoryTYPE,
             fmi2CallbackFunctions,
-            fmi2CallbackLoggerTYPE,
         )
         from fmpy.logging import addLoggerProxy
 
-        log = self.log
-
-        def logger(status, category, message) -> None:
-            label = _STATUS[status] if 0 <= status < len(_STATUS) else str(status)
-            log.append(f"[{label}] {_text(category)}: {_text(message)}")
-
-        # fmpy's native logger proxy keeps one Python logger per process (the last one
-        # given), so every instance's messages go to one dispatcher, which hands each to
-        # its instance by the componentEnvironment the instance was given.
-        global _DISPATCH
-        if _DISPATCH is None:
-            _DISPATCH = fmi2CallbackLoggerTYPE(_dispatch)
-        self._log_key = next(_LOG_KEYS)
-        _LOGGERS[self._log_key] = logger
+        self._environment = next(_ENVIRONMENTS)
+        _LOGS[self._environment] = self.log
         callbacks = fmi2CallbackFunctions()
-        callbacks.logger = _DISPATCH
-        callbacks.componentEnvironment = self._log_key
+        callbacks.logger = _dispatcher()
         callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        callbacks.componentEnvironment = self._environment
         addLoggerProxy(byref(callbacks))
+        # The FMU keeps a pointer to this structure until fmi2FreeInstance.
         self._callbacks = callbacks
-        self._logger = logger
+        self._logger = log_message
         self._fmu = FMU2Slave(
             guid=self.md.guid,
             unzipDirectory=self.unzip_dir,
@@ -216,6 +232,11 @@ class FmuSlave:
             raise FmuError(f"{self.name}: {name} at t = {self.time!r} s failed: {exc}") from exc
 
     def _failure(self, name: str, status: Any) -> str:
+        if status == "Fatal":
+            # FMI 2.0: after fmi2Fatal no function of the instance may be called, not
+            # even fmi2FreeInstance (pythonfmu 0.7.0 has then released the Python
+            # instance; freeing it again would release it twice).
+            self._fatal = True
         log = "; ".join(list(self.log)[-5:]) or "(the FMU logged nothing)"
         return (f"{self.name}: {name} at t = {self.time!r} s returned {status}; "
                 f"FMU log: {log}")
@@ -415,9 +436,14 @@ class FmuSlave:
             self._call("fmi2FreeFMUstate", lambda: self._fmu.freeFMUstate(snapshot))
 
     def close(self) -> None:
-        """Free the state taken, terminate, free the instance, remove the extracted copy."""
+        """Free the state taken, terminate, free the instance, remove the extracted copy.
+
+        After an fmi2Fatal nothing is called: the instance is left as it is.
+        """
         fmu, self._fmu = self._fmu, None
-        if fmu is not None:
+        if fmu is not None and getattr(self, "_fatal", False):
+            self._keep_dead.append(fmu)
+        elif fmu is not None:
             try:
                 if self._snapshot is not None:
                     fmu.freeFMUstate(self._snapshot)
@@ -429,7 +455,7 @@ class FmuSlave:
                 fmu.freeInstance()
             except Exception:  # noqa: BLE001
                 pass
-        _LOGGERS.pop(getattr(self, "_log_key", 0), None)
+        _LOGS.pop(getattr(self, "_environment", None), None)
         if self._owns_dir:
             shutil.rmtree(self.unzip_dir, ignore_errors=True)
             self._owns_dir = False

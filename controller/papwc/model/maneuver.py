@@ -7,6 +7,7 @@ learned carried over.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -25,24 +26,34 @@ TIMINGS: tuple[str, ...] = ("immediate", "delayed")
 
 #: Fields of a ``[maneuver]`` table.
 MANEUVER_VARIABLES: tuple[Variable, ...] = (
-    Variable("x_ref", "Reference (target) position; the mass starts at rest at 0", "m", 0.01),
-    Variable("T", "Sample period", "s", 0.01, min=0.0, min_open=True),
-    Variable("duration", "Duration of one iteration", "s", 2.0, min=0.0, min_open=True),
+    Variable("x_ref", "Reference (target) position; the mass starts at rest at 0", "m", 0.01,
+             min=-1e3, max=1e3),
+    Variable("T", "Sample period", "s", 0.01, min=1e-9, max=1e3),
+    Variable("duration", "Duration of one iteration, a whole number of samples T", "s", 2.0,
+             min=0.0, min_open=True, max=1e9),
     Variable("iterations", "Repetitions of the maneuver, estimates carried over", "", 10,
-             type="Integer", min=1),
+             type="Integer", min=1, max=1_000_000),
     Variable("timing", "When the force computed at t_k acts: over [t_k, t_k+1] (immediate) "
              "or one sample later (delayed, as a master stepping both side by side)", "",
              "immediate", type="String", choices=TIMINGS),
     Variable("noise_std", "Standard deviation of measurement noise added to x_meas", "m",
-             0.0, min=0.0),
-    Variable("noise_seed", "Seed of the measurement noise", "", 0, type="Integer"),
+             0.0, min=0.0, max=1.0),
+    Variable("noise_seed", "Seed of the measurement noise", "", 0, type="Integer",
+             min=-(2**63), max=2**63 - 1),
 )
 
 
 def _duration_at_least_T(values: Mapping[str, Any]) -> tuple[str, str] | None:
-    if values["duration"] < values["T"]:
-        return "duration", (f"duration = {values['duration']!r} s: must be >= T = "
-                            f"{values['T']!r} s")
+    duration, T = values["duration"], values["T"]
+    if duration < T:
+        return "duration", f"duration = {duration!r} s: must be >= T = {T!r} s"
+    n = duration / T
+    whole = round(n)
+    if abs(n - whole) > 1e-6 + 1e-12 * n:
+        lower, upper = max(math.floor(n), 1), math.ceil(n)
+        return "duration", (f"duration = {duration!r} s: must be a whole number of samples "
+                            f"T = {T!r} s (it is {n:.6g} samples; {lower * T:.6g} s or "
+                            f"{upper * T:.6g} s would be)")
     return None
 
 

@@ -27,15 +27,17 @@ __all__ = [
 #: Parameters of the plant (FMU parameters; SI units). Scenario files set all but
 #: :data:`INITIAL_STATE`.
 PLANT_PARAMETERS: tuple[Variable, ...] = (
-    Variable("m", "Mass", "kg", 150.0, min=0.0, min_open=True, nominal=100.0),
-    Variable("f_c", "Coulomb (sliding) friction force", "N", 100.0, min=0.0, nominal=100.0),
-    Variable("f_s", "Stiction (breakaway) force, >= f_c", "N", 130.0, min=0.0, nominal=100.0),
-    Variable("c", "Viscous damping", "N.s/m", 700.0, min=0.0, nominal=100.0),
-    Variable("x0", "Initial position", "m", 0.0, nominal=1.0),
-    Variable("v0", "Initial velocity", "m/s", 0.0, nominal=1.0),
+    Variable("m", "Mass", "kg", 150.0, min=1e-6, max=1e9, nominal=100.0),
+    Variable("f_c", "Coulomb (sliding) friction force", "N", 100.0, min=0.0, max=1e9,
+             nominal=100.0),
+    Variable("f_s", "Stiction (breakaway) force, >= f_c", "N", 130.0, min=0.0, max=1e9,
+             nominal=100.0),
+    Variable("c", "Viscous damping", "N.s/m", 700.0, min=0.0, max=1e9, nominal=100.0),
+    Variable("x0", "Initial position", "m", 0.0, min=-1e6, max=1e6, nominal=1.0),
+    Variable("v0", "Initial velocity", "m/s", 0.0, min=-1e6, max=1e6, nominal=1.0),
     Variable(
         "x_resolution", "Encoder resolution of x_meas (0 = ideal encoder)", "m", 0.0, min=0.0,
-        nominal=1e-6,
+        max=1.0, nominal=1e-6,
     ),
 )
 

@@ -35,25 +35,25 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("kind", "Controller kind (pwc: Section 2, papwc: Section 3, exact: Eq. (3) "
              "learned)", "", "papwc", type="String"),
     Variable("f_p_max", "Largest pulse amplitude (PWC always pulses at f_p_max)", "N", 300.0,
-             min=0.0, min_open=True, nominal=100.0),
+             min=0.0, min_open=True, max=1e9, nominal=100.0),
     Variable("t_p_max", "Largest pulse width; inf for no bound", "s", float("inf"), min=0.0,
-             min_open=True, inf_ok=True, note="(inf for no bound)"),
+             min_open=True, max=1e6, inf_ok=True, note="(inf for no bound)"),
     Variable("K_c", "Gain of Eq. (6)", "1", 1.0, min=0.0, max=2.0, min_open=True,
              max_open=True, note="(Eq. (6))"),
     Variable("tolerance", "Error band inside which the mass at rest counts as settled", "m",
-             2e-5, min=0.0, nominal=1e-5),
-    Variable("m_est", "Initial estimate of the mass", "kg", 150.0, min=0.0, min_open=True,
+             2e-5, min=0.0, max=1.0, nominal=1e-5),
+    Variable("m_est", "Initial estimate of the mass", "kg", 150.0, min=1e-6, max=1e9,
              nominal=100.0),
     Variable("f_c_est", "Initial estimate of the Coulomb friction, < f_p_max", "N", 80.0,
-             min=0.0, min_open=True, nominal=100.0),
+             min=1e-6, max=1e9, nominal=100.0),
     Variable("f_p_min", "Initial floor of the pulse amplitude, <= f_p_max; default f_c_est",
-             "N", None, min=0.0, optional=True, nominal=100.0),
+             "N", None, min=0.0, max=1e9, optional=True, nominal=100.0),
     Variable("floor_raise", "Relative step by which the amplitude floor rises above an "
              "amplitude that did not move the mass", "1", 0.05, min=0.0, max=1.0,
              min_open=True),
     Variable("F_inv0", "Initial inverse gain F^-1(0) of the PWC estimator, Eq. (8) (the "
              "paper: 1e-5, so F(0) = 1e5)", "s4",
-             1e-5, min=0.0, min_open=True, kinds=("pwc",)),
+             1e-5, min=1e-12, max=1e12, kinds=("pwc",)),
     Variable("lambda_1", "Forgetting parameter lambda_1 of Eq. (8)", "1", 1.0, min=0.0,
              max=1.0, min_open=True, note="(Eq. (8))", kinds=("pwc",)),
     Variable("lambda_2", "Forgetting parameter lambda_2 of Eq. (8)", "1", 1.0, min=0.0,
@@ -61,7 +61,7 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("delta_inv", "P(0) = delta_inv*I of the PAPWC estimator, Eq. (13)-(17) (the "
              "paper: delta^-1 = 1e-5; its advice 'delta small without noise' reads as 1e5, "
              "P(0) = F(0))", "1",
-             1e-5, min=0.0, min_open=True, kinds=("papwc",)),
+             1e-5, min=1e-12, max=1e12, kinds=("papwc",)),
     Variable("lambda", "Forgetting factor lambda of Eq. (14)-(15)", "1", 1.0, min=0.0,
              max=1.0, min_open=True, attr="lam", kinds=("papwc",)),
     Variable("regressor", "Pulse the estimator is fed, a reading the paper leaves open: 0 "
@@ -80,23 +80,24 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "stays f_p_min and Eq. (13)-(17) take d = 0", "", 0, type="Integer", min=0, max=2,
              note="(0 raise, 1 raise and learn d = 0, 2 learn d = 0)", kinds=("papwc",)),
     Variable("e_band", "Error band inside which the mass at rest is handed over from the "
-             "coarse feedback to pulse mode, > tolerance", "m", 0.02, min=0.0, min_open=True),
+             "coarse feedback to pulse mode, > tolerance", "m", 0.02, min=0.0, min_open=True,
+             max=1e3),
     Variable("k_p", "Proportional gain of the coarse feedback; default m_est*(10 rad/s)**2",
-             "N/m", None, min=0.0, min_open=True, optional=True),
+             "N/m", None, min=0.0, min_open=True, max=1e15, optional=True),
     Variable("k_d", "Derivative gain of the coarse feedback; default 2*0.7*(10 rad/s)*m_est",
-             "N.s/m", None, min=0.0, optional=True),
+             "N.s/m", None, min=0.0, max=1e15, optional=True),
     Variable("rest_samples", "Samples with unchanged measured position that count as at "
-             "rest", "", 1, type="Integer", min=1),
+             "rest", "", 1, type="Integer", min=1, max=1_000_000),
     Variable("rest_band", "Largest change of the measured position that still counts as "
-             "unchanged (rest detection)", "m", 0.0, min=0.0, nominal=1e-6),
+             "unchanged (rest detection)", "m", 0.0, min=0.0, max=1.0, nominal=1e-6),
     Variable("c_est", "Initial estimate of the viscous damping", "N.s/m", 0.0, min=0.0,
-             kinds=("exact",), nominal=100.0),
+             max=1e9, kinds=("exact",), nominal=100.0),
     Variable("history", "Number of pulses kept for the fit", "", 16, type="Integer", min=1,
-             kinds=("exact",)),
+             max=1000, kinds=("exact",)),
     Variable("max_pulses", "Pulses per maneuver after which the controller stops", "", 20,
-             type="Integer", min=1, kinds=("exact",)),
+             type="Integer", min=1, max=1_000_000, kinds=("exact",)),
     Variable("x_resolution", "Resolution of the position measurement; weights the fit", "m",
-             0.0, min=0.0, kinds=("exact",), nominal=1e-6),
+             0.0, min=0.0, max=1.0, kinds=("exact",), nominal=1e-6),
     Variable("f_s_tol", "Relative width of the f_s bracket below which no more probing is "
              "done", "1", 0.02, min=0.0, max=1.0, min_open=True, kinds=("exact",)),
 )
@@ -123,16 +124,25 @@ def _e_band_above_tolerance(values: Mapping[str, Any]) -> tuple[str, str] | None
                       f"{values['tolerance']!r} m")
 
 
-#: Rules between settings.
+def _t_p_max_at_least_T(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    if values["t_p_max"] >= values["T"]:
+        return None
+    return "t_p_max", (f"t_p_max = {values['t_p_max']!r} s: must be >= T = {values['T']!r} s "
+                       "(a pulse lasts a whole number of samples, at least one)")
+
+
+#: Rules between settings (and the sample period ``T``, where it is given: the
+#: controller FMU's parameter, a scenario's ``[maneuver]`` field).
 CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
     _below_f_p_max("f_c_est", strict=True),
     _below_f_p_max("f_p_min", strict=False),
     Constraint(("e_band", "tolerance"), _e_band_above_tolerance),
+    Constraint(("t_p_max", "T"), _t_p_max_at_least_T),
 )
 
 #: The sample period as a parameter of PulseController.fmu.
 SAMPLE_PERIOD = Variable("T", "Sample period: every communication step must be T", "s", 0.01,
-                         min=0.0, min_open=True)
+                         min=1e-9, max=1e3)
 
 #: A fixed reference as a parameter of PulseController.fmu: the controller's reference is
 #: ``x_ref_offset + x_ref``. An SSP binds it (SSP 1.0 bindings set FMI 2.0 variables with

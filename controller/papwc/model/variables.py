@@ -149,7 +149,8 @@ class Variable:
             if lo is not None:
                 text += f" {'>' if self.min_open else '>='} {_num(lo)}"
             if hi is not None:
-                text += f" {'<' if self.max_open else '<='} {_num(hi)}"
+                text += (" and" if lo is not None else "") + (
+                    f" {'<' if self.max_open else '<='} {_num(hi)}")
             return text
         if lo is not None and hi is not None:
             return (
@@ -180,6 +181,8 @@ class Variable:
             return f"be {self.range_text()}"
         if math.isnan(value) or (math.isinf(value) and not (self.inf_ok and value > 0)):
             return "be a finite number" + ("" if not self.inf_ok else " or inf")
+        if math.isinf(value):
+            return None  # +inf where inf_ok: beyond every finite bound by design
         lo, hi = self.min, self.max
         if lo is not None and (value <= lo if self.min_open else value < lo):
             return self._range_message()
@@ -221,12 +224,17 @@ def describe_value(value: Any) -> str:
 
 
 def _num(x: float) -> str:
-    """A bound as written in messages: ``0``, ``2``, ``1e-06``, ``0.5``."""
+    """A bound as written in messages: ``0``, ``2``, ``1e-06``, ``0.5``, ``1e+09``."""
+    if isinstance(x, int) and not isinstance(x, bool) and abs(x) < 10**7:
+        return str(x)
     if math.isinf(x):
         return "inf" if x > 0 else "-inf"
-    if float(x).is_integer() and abs(x) < 1e15:
+    if float(x).is_integer() and abs(x) < 1e5:
         return str(int(x))
-    return repr(float(x))
+    short = f"{float(x):g}"
+    if float(short) == x:
+        return short
+    return str(x) if isinstance(x, int) else repr(float(x))
 
 
 def by_name(variables: Iterable[Variable]) -> dict[str, Variable]:

@@ -1,0 +1,275 @@
+"""FMU states, refused calls and the master's logger, through fmpy (issue 13, groups 7 and 10).
+
+Both FMUs: a state that does not parse or does not fit is refused before
+anything changes and the instance keeps stepping correctly; parameters and
+outputs set after initialization, inputs and steps after fmi2Terminate are
+refused; the master (FmuSlave) frees every state it takes, routes each message
+to the instance that logged it and takes any logger argument, NULL included.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+import textwrap
+from ctypes import byref
+from pathlib import Path
+
+import pytest
+from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException, calloc, free
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+from fmpy.logging import addLoggerProxy
+
+from papwc.controllers import make_controller
+from papwc.controllers.settings import ControllerSettings
+from papwc.errors import FmuError
+from papwc.master import FmuSlave
+from papwc.model.stickslip import step
+
+T = 0.01
+PLANT = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+
+
+#: Messages by componentEnvironment: fmpy's logger proxy keeps one logger per process, so
+#: every instance here shares one and is told apart by its environment.
+MESSAGES: dict[int, list[tuple[int, str]]] = {}
+
+
+def _log(env, instance, status, category, message) -> None:
+    MESSAGES.setdefault(env or 0, []).append((status, (message or b"").decode()))
+
+
+LOGGER = fmi2CallbackLoggerTYPE(_log)
+
+
+class Instance:
+    """One FMU instance through fmpy's FMU2Slave, its log kept."""
+
+    def __init__(self, fmu: Path, name: str) -> None:
+        self.md = read_model_description(str(fmu))
+        self.unzipped = extract(str(fmu))
+        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
+        env = len(MESSAGES) + 1
+        self.messages = MESSAGES.setdefault(env, [])
+        callbacks = fmi2CallbackFunctions()
+        callbacks.componentEnvironment = env
+        callbacks.logger = LOGGER
+        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(byref(callbacks))
+        self._callbacks = callbacks
+        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipped,
+                             modelIdentifier=self.md.coSimulation.modelIdentifier,
+                             instanceName=name)
+        self.fmu.instantiate(callbacks=callbacks, loggingOn=True)
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+        self.fmu.exitInitializationMode()
+        self.time = 0.0
+
+    def set(self, name: str, value: float) -> None:
+        self.fmu.setReal([self.vr[name]], [value])
+
+    def get(self, name: str) -> float:
+        return self.fmu.getReal([self.vr[name]])[0]
+
+    def do_step(self) -> None:
+        self.fmu.doStep(self.time, T)
+        self.time += T
+
+    def state_bytes(self) -> bytes:
+        state = self.fmu.getFMUstate()
+        data = self.fmu.serializeFMUstate(state)
+        self.fmu.freeFMUstate(state)
+        return bytes(data)
+
+    def try_state(self, data: bytes) -> str:
+        """deSerializeFMUstate, setFMUstate, freeFMUstate; return the message logged."""
+        before = len(self.messages)
+        state = self.fmu.deSerializeFMUstate(data)
+        self.fmu.setFMUstate(state)
+        self.fmu.freeFMUstate(state)
+        new = [m for s, m in self.messages[before:] if s == 3]
+        assert len(new) == 1, self.messages[before:]
+        return new[0]
+
+    def close(self) -> None:
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+@pytest.fixture
+def instances(friction_plant_fmu: Path, pulse_controller_fmu: Path):
+    plant = Instance(friction_plant_fmu, "plant")
+    controller = Instance(pulse_controller_fmu, "controller")
+    yield plant, controller
+    plant.close()
+    controller.close()
+
+
+def edited(data: bytes, **fields) -> bytes:
+    state = json.loads(data)
+    state["fields"].update(fields)
+    return json.dumps(state).encode()
+
+
+def bad_states(own: bytes, other: bytes) -> list[tuple[bytes, str]]:
+    return [
+        (b"{}", "it names no model"),
+        (b"\x00\xff garbage", "the serialized state is not one of this FMU"),
+        (b"[1, 2]", "the serialized state is not one of this FMU"),
+        (other, "the state belongs to"),
+        (edited(own, time=float("nan")), "field time = nan is not a finite number"),
+        (edited(own, _ready="yes"), "field _ready = 'yes' is not true or false"),
+        (json.dumps({**json.loads(own), "fields": {"x": 1.0}}).encode(),
+         "does not hold this FMU's fields"),
+    ]
+
+
+def test_a_plant_state_that_does_not_fit_is_refused_and_the_plant_steps_on(instances) -> None:
+    plant, controller = instances
+    own, other = plant.state_bytes(), controller.state_bytes()
+    cases = bad_states(own, other) + [
+        (edited(own, m=-1.0), "its parameters are invalid: m = -1.0 kg"),
+        (edited(own, x="far"), "field x = 'far' is not a Real"),
+    ]
+    x, v = 0.0, 0.0
+    for k, (data, words) in enumerate(cases):
+        message = plant.try_state(data)
+        assert "setFMUstate refused" in message and words in message, message
+        assert "the instance keeps its state" in message
+        u = 300.0 if k % 3 == 0 else 0.0
+        plant.set("u", u)
+        plant.do_step()
+        x, v = step(x, v, u, T, PLANT["m"], PLANT["f_c"], PLANT["f_s"], PLANT["c"])
+        assert (plant.get("x"), plant.get("v")) == (x, v)
+
+
+def test_a_controller_state_that_does_not_fit_is_refused_and_it_controls_on(instances) -> None:
+    plant, controller = instances
+    own, other = controller.state_bytes(), plant.state_bytes()
+    cases = bad_states(own, other) + [
+        (edited(own, K_c=5.0), "its parameters are invalid: K_c = 5.0"),
+        (edited(own, _controller=[1.0, 2.0]), "the controller state does not fit"),
+    ]
+    reference = make_controller(ControllerSettings(), T)
+    x_ref = 0.01
+    controller.set("x_ref", x_ref)
+    for k, (data, words) in enumerate(cases):
+        message = controller.try_state(data)
+        assert "setFMUstate refused" in message and words in message, message
+        x_meas = 1e-3 * k
+        controller.set("x_meas", x_meas)
+        controller.do_step()
+        assert controller.get("u") == reference.update(controller.time - T, x_meas, x_ref)
+
+
+@pytest.mark.parametrize("which, parameter, output", [("plant", "m", "x"),
+                                                      ("controller", "K_c", "u")])
+def test_parameters_and_outputs_set_after_initialization_are_refused(
+        instances, which, parameter, output) -> None:
+    fmu = dict(zip(("plant", "controller"), instances, strict=True))[which]
+    before = fmu.state_bytes()
+    kept = fmu.get(parameter), fmu.get(output)
+    for name in (parameter, output):
+        count = len(fmu.messages)
+        fmu.set(name, 1.5)
+        (status, message), = fmu.messages[count:]
+        assert status == 3 and name in message and "refused" in message, message
+    assert (fmu.get(parameter), fmu.get(output)) == kept
+    assert fmu.state_bytes() == before
+
+
+def test_calls_after_terminate_are_refused(friction_plant_fmu: Path) -> None:
+    plant = Instance(friction_plant_fmu, "plant")
+    plant.set("u", 300.0)
+    plant.do_step()
+    x = plant.get("x")
+    plant.fmu.terminate()
+    plant.set("u", -300.0)
+    assert "input u cannot be set after fmi2Terminate" in plant.messages[-1][1]
+    with pytest.raises(FMICallException) as info:
+        plant.fmu.doStep(plant.time, T)
+    assert info.value.status == 2  # Discard
+    assert "the simulation was terminated" in plant.messages[-1][1]
+    assert plant.get("x") == x and plant.get("u") == 300.0
+    plant.fmu.freeInstance()
+
+
+def test_the_master_frees_every_state_it_takes(friction_plant_fmu: Path) -> None:
+    slave = FmuSlave(friction_plant_fmu)
+    fmu = slave._fmu
+    taken: list[object] = []
+    freed: list[object] = []
+    get, release = fmu.getFMUstate, fmu.freeFMUstate
+    fmu.getFMUstate = lambda: taken.append(get()) or taken[-1]
+    fmu.freeFMUstate = lambda state: freed.append(state) or release(state)
+    slave.set_start_values(PLANT)
+    slave.initialize()
+    for _ in range(3):
+        slave.do_step(0.0, T)
+        slave.restart()
+    slave.set_start_values({"c": 500.0})
+    slave.initialize()
+    slave.initialize()
+    slave.close()
+    assert len(taken) == 3 and [id(s) for s in freed] == [id(s) for s in taken]
+
+
+def test_the_master_logger_takes_every_argument(friction_plant_fmu: Path) -> None:
+    slave = FmuSlave(friction_plant_fmu, name="p")
+    env = slave._environment
+    slave._logger(env, None, 3, None, None)
+    slave._logger(env, b"p", 99, b"cat", b"\xff\xfe bytes")
+    slave._logger(None, None, None, None, None)
+    slave._logger(env, "p", "x", "c", "str")
+    # through fmpy's proxy, which formats the message as printf does
+    slave._callbacks.logger(env, b"p", 1, None, b"100%% done")
+    assert list(slave.log)[-4:] == ["[Error] : ", "[status 99] cat: \ufffd\ufffd bytes",
+                                    "[status 'x'] c: str", "[Warning] : 100% done"]
+    # A Fatal the FMU logs itself: pythonfmu passes a NULL category.
+    with pytest.raises(FmuError, match="fmi2GetReal at t = 0.0 s returned Fatal"):
+        slave._call("fmi2GetReal", lambda: slave._fmu.getReal([9999]))
+    assert slave.log[-1].startswith("[Fatal] : ") and "[getReal]" in slave.log[-1]
+    slave.close()
+
+
+def test_each_message_reaches_the_instance_that_logged_it(friction_plant_fmu: Path) -> None:
+    a = FmuSlave(friction_plant_fmu, name="a")
+    b = FmuSlave(friction_plant_fmu, name="b")
+    a.set_start_values({"m": -1.0})
+    with pytest.raises(FmuError, match=r"a: fmi2ExitInitializationMode .* refused the "
+                                       r"parameters: \[Error\] logStatusError: a: parameter "
+                                       r"m = -1.0 kg"):
+        a.initialize()
+    b.initialize()
+    assert not any("parameter m" in m for m in b.log)
+    a.close()
+    b.close()
+
+
+def test_a_percent_in_a_logged_value_is_shown_not_executed(pulse_controller_fmu: Path) -> None:
+    code = textwrap.dedent(f"""
+        from papwc.errors import FmuError
+        from papwc.master import FmuSlave
+        c = FmuSlave({str(pulse_controller_fmu)!r}, name="c%n%n")
+        c.set_start_values({{"kind": "%s%s%s%n%n%n 100%"}})
+        try:
+            c.initialize()
+        except FmuError as exc:
+            print(exc)
+        c.close()
+    """)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "parameter kind = '%s%s%s%n%n%n 100%': must be one of" in done.stdout
+    assert "c%n%n: parameter" in done.stdout
