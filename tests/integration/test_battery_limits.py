@@ -71,12 +71,13 @@ def faulty_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     code = textwrap.dedent(f"""
         from pathlib import Path
         from papwc.fmubuild.fmus import PACKAGE_DIR
-        from papwc.fmubuild.pythonfmu_build import STATE_OPTIONS, build_pythonfmu
+        from papwc.fmubuild.pythonfmu_build import STATE_OPTIONS, FmuSource, build_pythonfmu
         from papwc.model.plant import PLANT_VARIABLES
-        build_pythonfmu(Path({str(script)!r}), Path({str(folder / 'out')!r}),
-                        variables=PLANT_VARIABLES, package="papwc_friction_plant",
-                        bundle={{n: PACKAGE_DIR / n for n in ("model", "fmi")}},
-                        options=STATE_OPTIONS)
+        build_pythonfmu(FmuSource(Path({str(script)!r}), PLANT_VARIABLES,
+                                  package="papwc_friction_plant",
+                                  bundle={{n: PACKAGE_DIR / n for n in ("model", "fmi")}},
+                                  options=STATE_OPTIONS),
+                        Path({str(folder / 'out')!r}))
     """)
     subprocess.run([sys.executable, "-c", code], check=True, timeout=600)
     return folder / "out" / "FrictionPlant.fmu"

@@ -85,14 +85,15 @@ def test_cli_reports_a_bad_scenario_without_a_traceback(tmp_path, capsys):
     assert main(["run", str(path), "--plant", "physics"]) == 2
     err = capsys.readouterr().err
     assert str(path) in err and "m = -1.0" in err
-    assert err == f"papwc run: error: {path}: [plant] field 'm': m = -1.0 kg: must be > 0 kg\n"
+    assert err == (f"papwc run: error: {path}: [plant] field 'm': m = -1.0 kg: must satisfy "
+                   f"1e-06 <= m <= 1e+09 kg\n")
 
 
 @pytest.mark.parametrize(
     ("line", "field", "message"),
     [
-        ("history = 0", "history", "history = 0: must be a whole number >= 1"),
-        ("history = -1", "history", "history = -1: must be a whole number >= 1"),
+        ("history = 0", "history", "history = 0: must be a whole number 1 <= history <= 1000"),
+        ("history = -1", "history", "history = -1: must be a whole number 1 <= history <= 1000"),
         ('c_est = "x"', "c_est", "c_est = 'x': must be a number"),
         ("f_s_tol = 0", "f_s_tol", "f_s_tol = 0: must satisfy 0 < f_s_tol <= 1"),
     ],
@@ -116,7 +117,7 @@ def test_cli_run_as_a_process_exits_2_with_one_line(tmp_path):
     assert done.returncode == 2
     assert done.stderr.splitlines() == [
         f"papwc run: error: {path}: [[controller]] #1 field 'history': history = 0: must be "
-        "a whole number >= 1"]
+        "a whole number 1 <= history <= 1000"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
 

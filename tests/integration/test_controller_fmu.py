@@ -288,15 +288,18 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
     [
         ("K_c", 2.5, "parameter K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"),
         ("kind", "bogus", "parameter kind = 'bogus': must be one of 'exact', 'papwc', 'pwc'"),
-        ("k_p", -5.0, "parameter k_p = -5.0 N/m: must be > 0 N/m; -1 selects the default"),
-        ("T", 0.0, "parameter T = 0.0 s: must be > 0 s"),
-        ("rest_samples", 0, "parameter rest_samples = 0: must be a whole number >= 1"),
+        ("k_p", -5.0, "parameter k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m; -1 selects "
+                      "the default"),
+        ("T", 0.0, "parameter T = 0.0 s: must satisfy 1e-09 <= T <= 1000 s"),
+        ("rest_samples", 0, "parameter rest_samples = 0: must be a whole number 1 <= "
+                            "rest_samples <= 1000000"),
         ("f_c_est", 300.0, "parameter f_c_est = 300.0 N: must satisfy 0 < f_c_est < f_p_max "
                            "= 300.0 N"),
         ("t_p_max", -math.inf, "parameter t_p_max = -inf s: must be a finite number or inf"),
-        ("history", 0, "parameter history = 0: must be a whole number >= 1"),
-        ("max_pulses", -1, "parameter max_pulses = -1: must be a whole number >= 1"),
-        ("c_est", -1.0, "parameter c_est = -1.0 N.s/m: must be >= 0 N.s/m"),
+        ("history", 0, "parameter history = 0: must be a whole number 1 <= history <= 1000"),
+        ("max_pulses", -1, "parameter max_pulses = -1: must be a whole number 1 <= max_pulses "
+                           "<= 1000000"),
+        ("c_est", -1.0, "parameter c_est = -1.0 N.s/m: must satisfy 0 <= c_est <= 1e+09 N.s/m"),
         ("f_s_tol", 0.0, "parameter f_s_tol = 0.0: must satisfy 0 < f_s_tol <= 1"),
     ],
 )

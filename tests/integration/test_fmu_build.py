@@ -130,7 +130,8 @@ def test_every_variable_has_the_metadata_of_its_table_entry(
     ranged = var.causality == "parameter" and var.type in ("Real", "Integer")
     # an optional setting's min is the value that selects its computed default
     low = FMU_DEFAULT_SENTINEL if var.optional and var.min is not None else var.min
-    for bound, value in (("min", low), ("max", var.max)):
+    high = None if var.inf_ok else var.max  # an inf start would be above any max
+    for bound, value in (("min", low), ("max", high)):
         if ranged and value is not None:
             cast = float if var.type == "Real" else int
             assert typed.get(bound) == xml_number(cast(value)), bound
@@ -212,10 +213,13 @@ def test_plant_model_description_contract(friction_plant_fmu: Path) -> None:
         assert v.description, f"variable {v.name} has no description"
         if v.causality == "output":
             assert v.initial == "calculated", v.name
-    # ranges: m > 0 (written min = 0), f_c, f_s, c, x_resolution >= 0; x0, v0 unbounded
+    # ranges where the physics is exact in double precision (papwc.model.plant)
     assert {n: v.min for n, v in variables.items() if v.min is not None} == {
-        "m": "0.0", "f_c": "0.0", "f_s": "0.0", "c": "0.0", "x_resolution": "0.0"}
-    assert all(v.max is None for v in md.modelVariables)
+        "m": "1e-06", "f_c": "0.0", "f_s": "0.0", "c": "0.0", "x_resolution": "0.0",
+        "x0": "-1000000.0", "v0": "-1000000.0"}
+    assert {n: v.max for n, v in variables.items() if v.max is not None} == {
+        "m": "1000000000.0", "f_c": "1000000000.0", "f_s": "1000000000.0",
+        "c": "1000000000.0", "x_resolution": "1.0", "x0": "1000000.0", "v0": "1000000.0"}
     de = md.defaultExperiment
     assert (float(de.startTime), float(de.stopTime), float(de.stepSize)) == (0.0, 1.0, 0.01)
 

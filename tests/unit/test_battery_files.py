@@ -10,7 +10,6 @@ from pathlib import Path
 import pytest
 
 from papwc.battery import (
-    BatteryError,
     get_field,
     load_battery,
     parse_battery,
@@ -123,9 +122,12 @@ def test_read_journal_drops_a_torn_last_line(tmp_path):
     assert header["fingerprint"] == "x"
     assert [r["run_id"] for r in records] == ["d000"]
     assert good == len("\n".join(lines)) + 1
+    # a bad middle line is skipped with a warning naming it (its run is computed again)
     path.write_text(lines[0] + "\n{broken\n" + lines[1] + "\n")
-    with pytest.raises(BatteryError, match="line 2"):
-        read_journal(path)
+    warnings: list[str] = []
+    header, records, _ = read_journal(path, warnings)
+    assert [r["run_id"] for r in records] == ["d000"]
+    assert len(warnings) == 1 and "line 2 skipped" in warnings[0]
 
 
 def test_robustness_battery_file_is_valid():

@@ -220,11 +220,12 @@ def test_exact_settings_are_normal_settings_of_the_table():
 @pytest.mark.parametrize(
     ("bad", "message"),
     [
-        ({"c_est": -1.0}, "c_est = -1.0 N.s/m: must be >= 0 N.s/m"),
-        ({"history": 0}, "history = 0: must be a whole number >= 1"),
-        ({"history": -1}, "history = -1: must be a whole number >= 1"),
-        ({"max_pulses": 2.5}, "max_pulses = 2.5: must be a whole number >= 1"),
-        ({"x_resolution": -1e-6}, "x_resolution = -1e-06 m: must be >= 0 m"),
+        ({"c_est": -1.0}, "c_est = -1.0 N.s/m: must satisfy 0 <= c_est <= 1e+09 N.s/m"),
+        ({"history": 0}, "history = 0: must be a whole number 1 <= history <= 1000"),
+        ({"history": -1}, "history = -1: must be a whole number 1 <= history <= 1000"),
+        ({"max_pulses": 2.5},
+         "max_pulses = 2.5: must be a whole number 1 <= max_pulses <= 1000000"),
+        ({"x_resolution": -1e-6}, "x_resolution = -1e-06 m: must satisfy 0 <= x_resolution <= 1 m"),
         ({"f_s_tol": 0.0}, "f_s_tol = 0.0: must satisfy 0 < f_s_tol <= 1"),
         ({"c_est": "big"}, "c_est = 'big': must be a number"),
     ],

@@ -49,14 +49,17 @@ PAPWC_FIELDS = ("kind, f_p_max, t_p_max, K_c, tolerance, m_est, f_c_est, f_p_min
 @pytest.mark.parametrize(
     ("change", "field", "message"),
     [
-        (("m = 150.0", "m = -1.0"), "m", "[plant] field 'm': m = -1.0 kg: must be > 0 kg"),
+        (("m = 150.0", "m = -1.0"), "m", "[plant] field 'm': m = -1.0 kg: must satisfy 1e-06 <= "
+                                         "m <= 1e+09 kg"),
         (("m = 150.0", "m = 150.0\nf_s = 20.0"), "f_s",
          "[plant] field 'f_s': f_s = 20.0 N: must be >= f_c = 100.0 N"),
         (("m = 150.0", "mass = 150.0"), "mass",
          "[plant] unknown field 'mass'; allowed: m, f_c, f_s, c, x_resolution"),
-        (("T = 0.01", "T = 0.0"), "'T'", "[maneuver] field 'T': T = 0.0 s: must be > 0 s"),
+        (("T = 0.01", "T = 0.0"), "'T'", "[maneuver] field 'T': T = 0.0 s: must satisfy 1e-09 "
+                                         "<= T <= 1000 s"),
         (("iterations = 1", "iterations = 1.5"), "iterations",
-         "[maneuver] field 'iterations': iterations = 1.5: must be a whole number >= 1"),
+         "[maneuver] field 'iterations': iterations = 1.5: must be a whole number 1 <= "
+         "iterations <= 1000000"),
         (('kind = "papwc"', 'kind = "pid"'), "kind",
          "[[controller]] #1 field 'kind' = 'pid': must be one of 'exact', 'papwc', 'pwc'"),
         (('kind = "papwc"', 'kind = "papwc"\nK_c = 2.5'), "K_c",
@@ -72,7 +75,8 @@ PAPWC_FIELDS = ("kind, f_p_max, t_p_max, K_c, tolerance, m_est, f_c_est, f_p_min
         (('kind = "papwc"', 'kind = "papwc"\nhistory = 3'), "history",
          "[[controller]] #1 unknown field 'history' for kind 'papwc'; allowed: " + PAPWC_FIELDS),
         (('kind = "papwc"', 'kind = "papwc"\nrest_samples = 0'), "rest_samples",
-         "[[controller]] #1 field 'rest_samples': rest_samples = 0: must be a whole number >= 1"),
+         "[[controller]] #1 field 'rest_samples': rest_samples = 0: must be a whole number 1 <= "
+         "rest_samples <= 1000000"),
         (('kind = "papwc"', 'kind = "papwc"\ne_band = 1e-6'), "e_band",
          "[[controller]] #1 field 'e_band': e_band = 1e-06 m: must be > tolerance = 2e-05 m"),
         (('kind = "papwc"', 'kind = "papwc"\nlabel = 3'), "label",
@@ -94,17 +98,20 @@ def test_scenario_errors_name_the_file_and_the_field(tmp_path, change, field, me
 
 #: An exact controller's table with each of its own settings wrong.
 EXACT_ERRORS = [
-    ("history = 0", "history", "history = 0: must be a whole number >= 1"),
-    ("history = -1", "history", "history = -1: must be a whole number >= 1"),
+    ("history = 0", "history", "history = 0: must be a whole number 1 <= history <= 1000"),
+    ("history = -1", "history", "history = -1: must be a whole number 1 <= history <= 1000"),
     ('c_est = "x"', "c_est", "c_est = 'x': must be a number"),
     ("f_s_tol = 0", "f_s_tol", "f_s_tol = 0: must satisfy 0 < f_s_tol <= 1"),
     ("f_s_tol = 1.5", "f_s_tol", "f_s_tol = 1.5: must satisfy 0 < f_s_tol <= 1"),
     ("history = true", "history", "history = True: must be a number"),
-    ("max_pulses = 0", "max_pulses", "max_pulses = 0: must be a whole number >= 1"),
-    ("max_pulses = 2.5", "max_pulses", "max_pulses = 2.5: must be a whole number >= 1"),
-    ("c_est = -1.0", "c_est", "c_est = -1.0 N.s/m: must be >= 0 N.s/m"),
+    ("max_pulses = 0", "max_pulses", "max_pulses = 0: must be a whole number 1 <= max_pulses <= "
+                                     "1000000"),
+    ("max_pulses = 2.5", "max_pulses", "max_pulses = 2.5: must be a whole number 1 <= "
+                                       "max_pulses <= 1000000"),
+    ("c_est = -1.0", "c_est", "c_est = -1.0 N.s/m: must satisfy 0 <= c_est <= 1e+09 N.s/m"),
     ("c_est = inf", "c_est", "c_est = inf N.s/m: must be a finite number"),
-    ("x_resolution = -1e-6", "x_resolution", "x_resolution = -1e-06 m: must be >= 0 m"),
+    ("x_resolution = -1e-6", "x_resolution", "x_resolution = -1e-06 m: must satisfy 0 <= "
+                                             "x_resolution <= 1 m"),
 ]
 
 
@@ -212,7 +219,7 @@ def test_each_kind_reads_the_shared_settings_and_its_own(kind):
     ("values", "expected"),
     [
         ({"kind": "pid"}, [("kind", "kind = 'pid': must be one of 'pwc', 'papwc', 'exact'")]),
-        ({"k_p": -5.0}, [("k_p", "k_p = -5.0 N/m: must be > 0 N/m")]),
+        ({"k_p": -5.0}, [("k_p", "k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m")]),
         ({"k_d": None, "k_p": None, "f_p_min": None}, []),
         ({"f_p_min": 301.0}, [("f_p_min", "f_p_min = 301.0 N: must satisfy 0 <= f_p_min <= "
                                           "f_p_max = 300.0 N")]),
@@ -222,7 +229,7 @@ def test_each_kind_reads_the_shared_settings_and_its_own(kind):
         ({"lambda_2": 2.0}, [("lambda_2", "lambda_2 = 2.0: must satisfy 0 <= lambda_2 < 2 "
                                           "(Eq. (8))")]),
         ({"rest_samples": 1.5}, [("rest_samples", "rest_samples = 1.5: must be a whole number "
-                                                  ">= 1")]),
+                                                  "1 <= rest_samples <= 1000000")]),
     ],
 )
 def test_settings_problems(values, expected):
