@@ -195,7 +195,7 @@ def parse_scenario(data: dict, source: str, allow: tuple[str, ...] = ()) -> Scen
     _check_fields(source, "[plant]", plant_in, PLANT_FIELDS)
     plant = {**PLANT_FIELDS, **plant_in}
     _first(source, "[plant]", plant_problems(plant))
-    plant = {k: float(v) for k, v in plant.items()}
+    plant = {k: int(v) if isinstance(PLANT_FIELDS[k], int) else float(v) for k, v in plant.items()}
 
     man_in = _table(source, data, "maneuver")
     _check_fields(source, "[maneuver]", man_in, MANEUVER_FIELDS)

@@ -1,13 +1,26 @@
-"""Scenario batteries: parameter sweeps and Monte Carlo draws of a scenario, run in parallel.
+"""Scenario batteries: named cases, parameter sweeps and Monte Carlo draws, run in parallel.
 
-A battery file is a scenario file (see :mod:`papwc.scenario`) with up to three
+A battery file is a scenario file (see :mod:`papwc.scenario`) with up to four
 more top-level tables. Every run of the battery is the scenario with some fields
 replaced; a field is named by a dotted path:
 
-- ``plant.F`` -- a ``[plant]`` field (``m``, ``f_c``, ``f_s``, ``c``, ``x_resolution``);
+- ``plant.F`` -- a ``[plant]`` field (``m``, ``f_c``, ``f_s``, ``c``, ``x_resolution``,
+  the deviations ``v_s``, ``sigma_0``, ``ripple``, ``tau_u``, ``m_d``, ...);
 - ``maneuver.F`` -- a ``[maneuver]`` field;
 - ``controller.F`` -- field ``F`` of every ``[[controller]]`` table;
 - ``controller.N.F`` -- field ``F`` of the N-th ``[[controller]]`` table (N from 1).
+
+``[cases]``: named variants of the scenario. Each key is a case name (letters,
+digits and ``_``), each value a table of path = value (a number or a string)
+that the case sets; ``{}`` is the file's scenario itself::
+
+    [cases]
+    exact = {}
+    stribeck = { "plant.v_s" = 1e-3 }
+    lugre = { "plant.sigma_0" = 6.5e7, "plant.sigma_1" = 2e5, "plant.v_s" = 1e-3 }
+
+Every case gets the whole grid and every draw. A field set by a case cannot
+also be in ``[sweep]`` or ``[monte_carlo]`` (a draw may be a ratio ``of`` it).
 
 ``[sweep]``: a grid. Each key is a path, each value the list of values it takes;
 the runs cover every combination (the first key varies slowest)::
@@ -35,19 +48,19 @@ default 0); every other key is a path with its distribution, an inline table::
 Distributions: ``uniform`` takes exactly one of ``rel`` (relative half-width),
 ``abs`` (absolute half-width) or ``low`` and ``high``; ``normal`` takes ``std``
 (around the nominal value, or around ``mean`` if given) or ``rel_std``. The
-nominal value is the field's value in the file at that grid point (its default
-if the file leaves it out). With ``of = "plant.F"`` or ``"maneuver.F"`` the
+nominal value is the field's value in the file at that case and grid point (its
+default if the file leaves it out). With ``of = "plant.F"`` or ``"maneuver.F"`` the
 drawn number is a factor applied to that field's value in the run, and only the
 ``low``/``high`` and ``mean``/``std`` forms are allowed. Such a ratio is the
 way to keep a pair ordered, e.g. ``f_s >= f_c``: sampling ``f_s`` on its own
 can give ``f_s < f_c``, which is an invalid plant. Ratios are resolved after
-every other field. Only floating-point fields can be drawn (not
+every other field. Only floating-point fields can be drawn (not ``plant.seed``,
 ``maneuver.iterations``, ``noise_seed``, ``timing`` or ``controller.rest_samples``).
 
 Randomness: each field of draw ``d`` gets its own stream, seeded by ``seed``,
 ``d`` and the path (stdlib :class:`random.Random`, stable across Python
-versions); a ``controller.F`` path uses one number for every table, and grid
-points reuse the same numbers (common random numbers). All runs are drawn up
+versions); a ``controller.F`` path uses one number for every table, and cases
+and grid points reuse the same numbers (common random numbers). All runs are drawn up
 front, so the results do not depend on the number of workers, the engine or the
 order in which runs finish.
 
@@ -66,9 +79,12 @@ steps of each run (``--max-steps``, default 1e6); every ``[sweep]`` value is
 checked against its field's range, and a battery all of whose runs are invalid
 is refused.
 
-A grid and draws combine: every grid point gets all ``n`` draws. Each run has
-an id (``s<grid point>``, ``d<draw>``, ``s<grid point>-d<draw>``, or
-``nominal``), a hash of its fully resolved parameters, and is validated by
+Cases, a grid and draws combine: every case gets every grid point, every grid
+point all ``n`` draws; the fields are set in that order (case, grid point,
+draw, then the ratios). Each run has an id (``s<grid point>``, ``d<draw>``,
+``s<grid point>-d<draw>``, or ``nominal``, preceded by ``<case>-`` with cases,
+or the case name alone), a hash of its fully resolved parameters, and is
+validated by
 :func:`papwc.scenario.parse_scenario`; a run whose parameters are invalid (e.g. a
 sweep value ``f_s < f_c``) is recorded with status ``error`` and the message.
 
@@ -83,15 +99,16 @@ Outputs of :func:`run_battery` in the output folder:
   computed again (see :mod:`papwc.battery.journal`). On Ctrl-C the runs that
   finished are in it and the message says how to resume.
   ``journal.jsonl.lock`` keeps two batteries from writing into one folder.
-- ``results.csv`` -- one row per run, controller and iteration, sorted by
-  battery, run id, controller and iteration: the varied fields (one column per
-  path; a ``controller.F`` column holds the row's controller's value), the
+- ``results.csv`` -- one row per run, controller and iteration, in the order of
+  the runs (battery, case, grid point, draw), controller and iteration: the
+  case (a ``case`` column when a battery has cases), the varied fields (one
+  column per path; a ``controller.F`` column holds the row's controller's value), the
   metrics of :func:`papwc.recording.summarize`, ``success``, ``status`` and
   ``message``; ``last_iteration`` marks each controller's final row.
 - ``runs.csv`` -- one row per run with its status and every resolved parameter.
-- ``summary.md`` -- per battery and controller: success rate, median, 95th
-  percentile and maximum of |final error|, pulses and settle time, in the last
-  iteration.
+- ``summary.md`` -- per battery (and case) and controller: success rate, median,
+  95th percentile and maximum of |final error|, pulses and settle time, in the
+  last iteration.
 - ``final_error_<battery>.png`` -- distribution (empirical CDF) of |final error|
   per controller on a log axis.
 """

@@ -1,4 +1,4 @@
-"""Resolving a battery into runs: the grid, the draws, one validated scenario per run."""
+"""Resolving a battery into runs: the cases, the grid, the draws, one validated scenario per run."""
 
 from __future__ import annotations
 
@@ -31,15 +31,18 @@ class RunSpec:
     battery : str
         Name of the battery it belongs to.
     run_id : str
-        Stable id within the battery (from its grid point and draw).
+        Stable id within the battery (from its case, grid point and draw).
     order : tuple of int
-        (battery number, grid point, draw): the order of results.
+        (battery number, grid point, draw); runs are listed case by case, each
+        case in this order.
     data : dict
         The scenario of this run, every varied field replaced.
     run_hash : str
         First 12 hex digits of the SHA-256 of ``data`` as canonical JSON.
     error : str
         Why ``data`` is not a valid scenario ("" if it is).
+    case : str
+        Name of the run's case ("" without ``[cases]``).
     """
 
     battery: str
@@ -48,6 +51,7 @@ class RunSpec:
     data: dict
     run_hash: str
     error: str = ""
+    case: str = ""
 
     def task(self, source: str) -> dict:
         """What a worker needs to run it (picklable)."""
@@ -153,9 +157,10 @@ def check_size(batteries: list[Battery], max_runs: int = MAX_RUNS) -> None:
                                 f"over the limit of {max_runs} runs; pass --max-runs {grid} "
                                 "to allow it")
         if runs > max_runs:
-            raise ScenarioError(f"{battery.source}: {grid} grid point(s) x {battery.n} draw(s) "
-                                f"= {runs} runs, over the limit of {max_runs} runs; pass "
-                                f"--max-runs {runs} to allow it")
+            cases = f"{len(battery.cases)} case(s) x " if battery.cases else ""
+            raise ScenarioError(f"{battery.source}: {cases}{grid} grid point(s) x {battery.n} "
+                                f"draw(s) = {runs} runs, over the limit of {max_runs} runs; "
+                                f"pass --max-runs {runs} to allow it")
         total += runs
     if total > max_runs:
         raise ScenarioError(f"the batteries have {total} runs together, over the limit of "
@@ -189,28 +194,35 @@ def plan_runs(batteries: list[Battery], max_runs: int = MAX_RUNS,
         grid = list(itertools.product(*(values for _, values in battery.sweep)))
         gw = max(1, len(str(len(grid) - 1)))
         dw = max(3, len(str(battery.n - 1)))
-        for gi, point in enumerate(grid):
-            point_data = copy.deepcopy(battery.data)
-            for (path, _), value in zip(battery.sweep, point, strict=True):
-                _set_field(point_data, path, value)
-            for di in range(battery.n):
-                data = copy.deepcopy(point_data)
-                if battery.monte_carlo:
-                    _apply_draws(battery, data, di)
-                ids = ([f"s{gi:0{gw}d}"] if battery.sweep else []) + (
-                    [f"d{di:0{dw}d}"] if battery.monte_carlo else [])
-                run_id = "-".join(ids) or "nominal"
-                spec = RunSpec(battery.name, run_id, (bi, gi, di), data, _hash(data))
-                where = f"{battery.source} run {run_id}"
-                try:
-                    scenario = parse_scenario(data, where)
-                except ScenarioError as exc:
-                    spec.error = str(exc)
-                else:
-                    m = scenario.maneuver
-                    check_steps(where, len(scenario.controllers), m.iterations, m.duration,
-                                m.T, max_steps)
-                runs.append(spec)
+        cases = battery.cases or [("", {})]
+        for case, overrides in cases:
+            case_data = copy.deepcopy(battery.data)
+            for path, value in overrides.items():
+                _set_field(case_data, path, value)
+            for gi, point in enumerate(grid):
+                point_data = copy.deepcopy(case_data)
+                for (path, _), value in zip(battery.sweep, point, strict=True):
+                    _set_field(point_data, path, value)
+                for di in range(battery.n):
+                    data = copy.deepcopy(point_data)
+                    if battery.monte_carlo:
+                        _apply_draws(battery, data, di)
+                    ids = ([case] if case else []) + (
+                        [f"s{gi:0{gw}d}"] if battery.sweep else []) + (
+                        [f"d{di:0{dw}d}"] if battery.monte_carlo else [])
+                    run_id = "-".join(ids) or "nominal"
+                    spec = RunSpec(battery.name, run_id, (bi, gi, di), data, _hash(data),
+                                   case=case)
+                    where = f"{battery.source} run {run_id}"
+                    try:
+                        scenario = parse_scenario(data, where)
+                    except ScenarioError as exc:
+                        spec.error = str(exc)
+                    else:
+                        m = scenario.maneuver
+                        check_steps(where, len(scenario.controllers), m.iterations,
+                                    m.duration, m.T, max_steps)
+                    runs.append(spec)
         mine = runs[first:]
         if mine and all(spec.error for spec in mine):
             raise ScenarioError(f"every run of the battery ({len(mine)}) is invalid; the "

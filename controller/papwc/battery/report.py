@@ -43,6 +43,8 @@ def result_rows(batteries: list[Battery], runs: list[RunSpec], records: dict) ->
         rec = records[(spec.battery, spec.run_id)]
         battery = by_name[spec.battery]
         base = {"battery": spec.battery, "run_id": spec.run_id, "run_hash": spec.run_hash}
+        if battery.cases:
+            base["case"] = spec.case
         ctrls = rec["controllers"]
         if not ctrls:
             for i, table in enumerate(controller_tables(spec.data)):
@@ -120,33 +122,27 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
         tol = (f"{battery.success_tolerance:g} m" if battery.success_tolerance is not None
                else "each controller's tolerance")
         grid = math.prod(len(v) for _, v in battery.sweep)
+        cases = f"{len(battery.cases)} case(s) × " if battery.cases else ""
         lines += [f"## {battery.name}", "",
-                  f"File `{battery.source}`: {len(b_runs)} runs ({grid} grid point(s) × "
+                  f"File `{battery.source}`: {len(b_runs)} runs ({cases}{grid} grid point(s) × "
                   f"{battery.n} draw(s)"
                   + (f", seed {battery.seed}" if battery.monte_carlo else "")
                   + f"); success tolerance: {tol}.", ""]
         if battery.varied:
             lines += ["Varied: " + ", ".join(f"`{p}`" for p in battery.varied) + ".", ""]
-        lines += ["| controller | runs | errors | success | limit cycles | abs(e) median (m) | "
-                  "abs(e) p95 (m) | abs(e) max (m) | pulses median | p95 | max | settled | "
-                  "settle median (s) | p95 | max |",
-                  "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+        first = "| case " if battery.cases else ""
+        lines += [first + "| controller | runs | errors | success | limit cycles | "
+                  "abs(e) median (m) | abs(e) p95 (m) | abs(e) max (m) | pulses median | p95 | "
+                  "max | settled | settle median (s) | p95 | max |",
+                  ("|---" if battery.cases else "")
+                  + "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
         b_rows = [r for r in last if r["battery"] == battery.name]
-        for label in dict.fromkeys(r["controller"] for r in b_rows):
-            cr = [r for r in b_rows if r["controller"] == label]
-            ok = [r for r in cr if r["status"] == "ok"]
-            succ = sum(1 for r in cr if r["success"])
-            cycles = sum(1 for r in ok if r["limit_cycle"])
-            e = _stats([abs(r["final_error_m"]) for r in ok])
-            p = _stats([float(r["pulses"]) for r in ok])
-            settled = [r["settle_time_s"] for r in ok if not math.isnan(r["settle_time_s"])]
-            s = _stats(settled)
-            lines.append(
-                f"| {label} | {len(cr)} | {len(cr) - len(ok)} | {succ / len(cr):.1%} | "
-                f"{cycles} | {_fmt(e[0], '.3g')} | {_fmt(e[1], '.3g')} | {_fmt(e[2], '.3g')} | "
-                f"{_fmt(p[0], '.0f')} | {_fmt(p[1], '.1f')} | {_fmt(p[2], '.0f')} | "
-                f"{len(settled)} | {_fmt(s[0], '.3f')} | {_fmt(s[1], '.3f')} | "
-                f"{_fmt(s[2], '.3f')} |")
+        groups = [(name, [r for r in b_rows if r["case"] == name]) for name, _ in battery.cases
+                  ] if battery.cases else [("", b_rows)]
+        for case, case_rows in groups:
+            for label in dict.fromkeys(r["controller"] for r in case_rows):
+                cr = [r for r in case_rows if r["controller"] == label]
+                lines.append((f"| {case} " if battery.cases else "") + _summary_cells(label, cr))
         lines += ["", f"Distribution of |final error|: `final_error_{battery.name}.png`.", ""]
         failed = [s for s in b_runs if (s.battery, s.run_id) in failed_keys]
         if failed:
@@ -161,6 +157,22 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
     return "\n".join(lines)
 
 
+def _summary_cells(label: str, cr: list[dict]) -> str:
+    """One row of a summary table: a controller's statistics over the rows ``cr``."""
+    ok = [r for r in cr if r["status"] == "ok"]
+    succ = sum(1 for r in cr if r["success"])
+    cycles = sum(1 for r in ok if r["limit_cycle"])
+    e = _stats([abs(r["final_error_m"]) for r in ok])
+    p = _stats([float(r["pulses"]) for r in ok])
+    settled = [r["settle_time_s"] for r in ok if not math.isnan(r["settle_time_s"])]
+    s = _stats(settled)
+    return (f"| {label} | {len(cr)} | {len(cr) - len(ok)} | {succ / len(cr):.1%} | "
+            f"{cycles} | {_fmt(e[0], '.3g')} | {_fmt(e[1], '.3g')} | {_fmt(e[2], '.3g')} | "
+            f"{_fmt(p[0], '.0f')} | {_fmt(p[1], '.1f')} | {_fmt(p[2], '.0f')} | "
+            f"{len(settled)} | {_fmt(s[0], '.3f')} | {_fmt(s[1], '.3f')} | "
+            f"{_fmt(s[2], '.3f')} |")
+
+
 def plot_final_errors(battery: Battery, rows: list[dict], path: Path) -> None:
     """Empirical CDF of |final error| per controller (last iteration), log x axis, as PNG."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
@@ -173,11 +185,13 @@ def plot_final_errors(battery: Battery, rows: list[dict], path: Path) -> None:
     last = [r for r in rows if r["last_iteration"] and r["battery"] == battery.name
             and r["status"] == "ok"]
     tols = {}
-    for label in dict.fromkeys(r["controller"] for r in last):
+    keys = dict.fromkeys((r.get("case", ""), r["controller"]) for r in last)
+    for case, label in keys:
         errs = sorted(max(abs(r["final_error_m"]), floor) for r in last
-                      if r["controller"] == label)
+                      if r["controller"] == label and r.get("case", "") == case)
         n = len(errs)
-        ax.step(errs, [(i + 1) / n for i in range(n)], where="post", label=f"{label} ({n})")
+        name = f"{case}: {label}" if case else label
+        ax.step(errs, [(i + 1) / n for i in range(n)], where="post", label=f"{name} ({n})")
     if battery.success_tolerance is not None:
         tols["success tolerance"] = battery.success_tolerance
     for name, tol in tols.items():
@@ -190,7 +204,8 @@ def plot_final_errors(battery: Battery, rows: list[dict], path: Path) -> None:
     ax.set_title(f"{battery.name}: final error per controller")
     ax.grid(True, which="both", alpha=0.3)
     if last:
-        ax.legend(loc="lower right", fontsize=8)
+        ax.legend(loc="lower right", fontsize=8 if len(keys) <= 8 else 5,
+                  ncol=1 if len(keys) <= 12 else 2)
     fig.tight_layout()
     save_figure(fig, path, dpi=110)
 
@@ -202,17 +217,22 @@ def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], reco
 
     rows = result_rows(batteries, runs, records)
     varied = list(dict.fromkeys(p for b in batteries for p in b.varied))
-    columns = (["battery", "run_id", "run_hash", "controller", "kind", "iteration",
-                "last_iteration"] + varied + list(METRICS) + ["success", "status", "message"])
+    has_cases = any(b.cases for b in batteries)
+    columns = (["battery", "run_id", "run_hash"] + (["case"] if has_cases else [])
+               + ["controller", "kind", "iteration", "last_iteration"] + varied + list(METRICS)
+               + ["success", "status", "message"])
     paths = [out / "results.csv", out / "runs.csv", out / "summary.md"]
     write_rows(paths[0], rows, columns)
     run_rows = []
     for spec in runs:
         rec = records[(spec.battery, spec.run_id)]
-        run_rows.append({"battery": spec.battery, "run_id": spec.run_id,
-                         "run_hash": spec.run_hash, "status": rec["status"],
-                         "message": rec["message"], **_flatten(spec.data)})
-    run_columns = ["battery", "run_id", "run_hash", "status", "message"]
+        row = {"battery": spec.battery, "run_id": spec.run_id, "run_hash": spec.run_hash}
+        if has_cases:
+            row["case"] = spec.case
+        row.update({"status": rec["status"], "message": rec["message"], **_flatten(spec.data)})
+        run_rows.append(row)
+    run_columns = ["battery", "run_id", "run_hash"] + (["case"] if has_cases else []) + [
+        "status", "message"]
     run_columns += list(dict.fromkeys(k for r in run_rows for k in r if k not in run_columns))
     write_rows(paths[1], run_rows, run_columns)
     write_text(paths[2], summary_markdown(batteries, runs, rows, fmu_sha256))

@@ -1,4 +1,4 @@
-"""Battery files: the ``[sweep]``, ``[monte_carlo]`` and ``[battery]`` tables, validated.
+"""Battery files: the ``[cases]``, ``[sweep]``, ``[monte_carlo]`` and ``[battery]`` tables.
 
 See :mod:`papwc.battery` for the syntax.
 """
@@ -24,9 +24,11 @@ from papwc.scenario import (
     read_toml,
 )
 
-BATTERY_TABLES = ("sweep", "monte_carlo", "battery")
+BATTERY_TABLES = ("sweep", "monte_carlo", "battery", "cases")
+#: Characters a case name may hold (it is part of run ids).
+CASE_NAME_CHARACTERS = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_")
 #: Fields that cannot be drawn from a distribution (whole numbers, switches or words).
-NOT_DRAWABLE = {"maneuver.iterations", "maneuver.noise_seed", "maneuver.timing",
+NOT_DRAWABLE = {"plant.seed", "maneuver.iterations", "maneuver.noise_seed", "maneuver.timing",
                 "controller.rest_samples", "controller.kind", "controller.label"} | {
     f"controller.{v.name}" for v in CONTROLLER_SETTINGS if v.type != "Real"}
 DISTRIBUTIONS = {
@@ -81,6 +83,9 @@ class Battery:
         The file's scenario (the battery tables removed), the nominal run.
     n_controllers : int
         Number of ``[[controller]]`` tables.
+    cases : list of (name, overrides)
+        The named cases in file order, each a mapping path -> value (empty
+        without ``[cases]``).
     sweep : list of (path, values)
         The grid, first path slowest.
     draws : list of Distribution
@@ -99,6 +104,7 @@ class Battery:
     source: str
     data: dict
     n_controllers: int
+    cases: list[tuple[str, dict]] = field(default_factory=list)
     sweep: list[tuple[str, list]] = field(default_factory=list)
     draws: list[Distribution] = field(default_factory=list)
     n: int = 1
@@ -114,13 +120,14 @@ class Battery:
 
     @property
     def n_runs(self) -> int:
-        """Runs of the battery: grid points x draws."""
-        return self.grid_points * self.n
+        """Runs of the battery: cases x grid points x draws."""
+        return max(1, len(self.cases)) * self.grid_points * self.n
 
     @property
     def varied(self) -> list[str]:
-        """Paths that differ between runs, sweep first."""
-        out = [p for p, _ in self.sweep]
+        """Paths that differ between runs: the cases' first, then the sweep's, then the draws'."""
+        out = list(dict.fromkeys(p for _, overrides in self.cases for p in overrides))
+        out += [p for p, _ in self.sweep if p not in out]
         return out + [d.path for d in self.draws if d.path not in out]
 
 
@@ -186,6 +193,8 @@ def parse_battery(data: dict, source: str) -> Battery:
     n_ctrl = len(nominal.controllers)
     battery = Battery(nominal.name, source, scenario_data, n_ctrl)
 
+    battery.cases = _parse_cases(source, data.get("cases"), n_ctrl)
+
     sweep = data.get("sweep", {})
     if not isinstance(sweep, dict):
         raise ScenarioError(f"{source}: [sweep] must be a table of path = [values]")
@@ -204,6 +213,7 @@ def parse_battery(data: dict, source: str) -> Battery:
                 raise ScenarioError(f"{source}: [sweep] field {path!r}: value "
                                     f"{var.message(v, must)}")
         battery.sweep.append((path, list(values)))
+    _refuse_set_twice(source, battery.cases, {p for p, _ in battery.sweep}, "[sweep]")
 
     mc = data.get("monte_carlo")
     if mc is not None:
@@ -231,6 +241,8 @@ def parse_battery(data: dict, source: str) -> Battery:
         if not battery.draws:
             raise ScenarioError(f"{source}: [monte_carlo] draws nothing; add fields such as "
                                 "\"plant.m\" = { dist = \"uniform\", rel = 0.3 }")
+        _refuse_set_twice(source, battery.cases, {d.path for d in battery.draws},
+                          "[monte_carlo]")
 
     opts = data.get("battery", {})
     if not isinstance(opts, dict):
@@ -262,6 +274,42 @@ def field_variable(path: str):
     """The model layer's Variable of a checked field path (``plant.m``, ``controller.1.K_c``)."""
     parts = path.split(".")
     return _FIELD_TABLES[parts[0]][parts[-1]]
+
+
+def _parse_cases(source: str, cases, n_ctrl: int) -> list[tuple[str, dict]]:
+    """The ``[cases]`` table: case name -> table of path = value (see :mod:`papwc.battery`)."""
+    if cases is None:
+        return []
+    if not isinstance(cases, dict) or not cases:
+        raise ScenarioError(f"{source}: [cases] must be a non-empty table of case name = "
+                            "{ path = value, ... }, e.g. stribeck = { \"plant.v_s\" = 1e-3 }")
+    out = []
+    for name, overrides in cases.items():
+        if not name or not set(name) <= CASE_NAME_CHARACTERS:
+            raise ScenarioError(f"{source}: [cases] case name {name!r}: must be made of "
+                                "letters, digits and '_' (it is part of the run ids)")
+        if not isinstance(overrides, dict):
+            raise ScenarioError(f"{source}: [cases] case {name!r} = {overrides!r}: must be a "
+                                "table of path = value, e.g. { \"plant.v_s\" = 1e-3 } ({} for "
+                                "the file's own values)")
+        for path, value in overrides.items():
+            _check_path(source, f"cases.{name}", path, n_ctrl, drawn=False)
+            if not (is_number(value) or isinstance(value, str)):
+                raise ScenarioError(f"{source}: [cases.{name}] field {path!r} = {value!r}: "
+                                    "must be a number or a string")
+        out.append((name, dict(overrides)))
+    return out
+
+
+def _refuse_set_twice(source: str, cases: list[tuple[str, dict]], paths: set[str],
+                      table: str) -> None:
+    """Raise ScenarioError if a case sets a path that ``table`` varies too."""
+    for name, overrides in cases:
+        for path in overrides:
+            if path in paths:
+                raise ScenarioError(f"{source}: [cases.{name}] field {path!r} is also varied "
+                                    f"by {table}; a field is set by the cases or by {table}, "
+                                    "not by both")
 
 
 def _parse_distribution(source: str, path: str, spec, n_ctrl: int) -> Distribution:

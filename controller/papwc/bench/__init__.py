@@ -3,7 +3,7 @@
 A section is a function ``f(context) -> list[Row]`` registered with
 :func:`register_section`; :func:`run_sections` calls every registered section
 in order and prints its rows as a small table. The sections are in
-:mod:`.plant`, :mod:`.master` and :mod:`.battery`; add one by writing such a
+:mod:`.plant`, :mod:`.master`, :mod:`.battery` and :mod:`.realism`; add one by writing such a
 function in a module imported by :func:`load_sections` and decorating it::
 
     @register_section("closed loop")
@@ -12,7 +12,9 @@ function in a module imported by :func:`load_sections` and decorating it::
         return [Row("master overhead per step", 12.3, "us")]
 
 The FMUs a section needs are in ``context.fmu_dir`` (built once, before any FMU
-is loaded into the process); ``context.quick`` asks for fewer iterations.
+is loaded into the process); ``context.quick`` asks for fewer iterations. A
+section registered with ``option="NAME"`` runs only when ``NAME`` is in
+``context.options`` (``papwc bench --NAME``): for measurements that take minutes.
 
 Timings on a shared machine are noisy, so sections measure the things they
 compare in the same run, interleaved, and report medians over rounds.
@@ -65,11 +67,14 @@ class BenchContext:
         Fewer iterations (a smoke run; the figures are less precise).
     notes : list of str
         Remarks a section adds; printed under its table.
+    options : frozenset of str
+        Opt-in sections to run as well (see :func:`register_section`).
     """
 
     fmu_dir: Path
     quick: bool = False
     notes: list[str] = field(default_factory=list)
+    options: frozenset[str] = frozenset()
 
     def fmu(self, name: str) -> Path:
         """Path of the FMU ``name`` (e.g. ``"FrictionPlant.fmu"``) in :attr:`fmu_dir`.
@@ -87,10 +92,11 @@ class BenchContext:
 
 @dataclass(frozen=True)
 class Section:
-    """A registered section: its title and the function that measures it."""
+    """A registered section: its title, the function that measures it, its opt-in option."""
 
     title: str
     measure: Callable[[BenchContext], list[Row]]
+    option: str = ""
 
 
 #: Registered sections, in the order they run.
@@ -98,14 +104,17 @@ SECTIONS: list[Section] = []
 
 
 def register_section(
-    title: str,
+    title: str, option: str = ""
 ) -> Callable[[Callable[[BenchContext], list[Row]]], Callable[[BenchContext], list[Row]]]:
-    """Decorator: register ``f(context) -> list[Row]`` as a section titled ``title``."""
+    """Decorator: register ``f(context) -> list[Row]`` as a section titled ``title``.
+
+    With ``option``, the section runs only when the option is in ``context.options``.
+    """
 
     def decorator(
         measure: Callable[[BenchContext], list[Row]],
     ) -> Callable[[BenchContext], list[Row]]:
-        SECTIONS.append(Section(title, measure))
+        SECTIONS.append(Section(title, measure, option))
         return measure
 
     return decorator
@@ -130,6 +139,8 @@ def run_sections(
     out = sys.stdout if out is None else out
     results = {}
     for section in SECTIONS if sections is None else sections:
+        if section.option and section.option not in context.options:
+            continue
         context.notes.clear()
         rows = section.measure(context)
         results[section.title] = rows
@@ -176,7 +187,7 @@ def median_interleaved(
 
 
 #: Modules that register sections, in the order their sections run.
-SECTION_MODULES = ("plant", "master", "battery")
+SECTION_MODULES = ("plant", "master", "battery", "realism")
 
 
 def load_sections() -> list[Section]:

@@ -121,3 +121,65 @@ def plant_step_cost(context: BenchContext) -> list[Row]:
     ]
 
 
+def realism_plants() -> dict[str, dict[str, float]]:
+    """Plant parameters of each case of ``scenarios/realism.toml``, by case name."""
+    from papwc.battery import load_battery
+    from papwc.resources import scenario_file
+
+    battery = load_battery(scenario_file("realism.toml"))
+    base = dict(battery.data.get("plant", {}))
+    return {name: {**base, **{path.split(".", 1)[1]: value for path, value in overrides.items()
+                              if path.startswith("plant.")}}
+            for name, overrides in battery.cases}
+
+
+def _plant_loop(params: dict[str, float]) -> Callable[[list[float]], float]:
+    """Return loop(forces) -> s per :meth:`papwc.model.dynamics.Plant.step`, state carried over."""
+    from papwc.model.dynamics import Plant
+
+    plant = Plant(params)
+    step = plant.step
+
+    def loop(forces: list[float]) -> float:
+        with gc_paused():
+            start = time.perf_counter_ns()
+            for u in forces:
+                reason = step(u, 0.01)
+                if reason is not None:
+                    raise RuntimeError(f"bench plant {params}: step refused: {reason}")
+            elapsed = time.perf_counter_ns() - start
+        return elapsed * 1e-9 / len(forces)
+
+    return loop
+
+
+@register_section("FrictionPlant deviations: cost of one 10 ms step (model layer, in process)")
+def deviation_step_cost(context: BenchContext) -> list[Row]:
+    """Cost of one communication step of each case of ``scenarios/realism.toml``.
+
+    The model layer's :class:`~papwc.model.dynamics.Plant` (what FrictionPlant.fmu
+    and the master's in-process plant step) under :func:`plant_forces`, each case
+    beside the exact plant (case ``exact``: :func:`papwc.model.stickslip.step`),
+    interleaved over rounds; medians.
+    """
+    n_steps, rounds = (200, 1) if context.quick else (1_000, 3)
+    forces = plant_forces(n_steps)
+    plants = realism_plants()
+    loops = {name: _plant_loop(params) for name, params in plants.items()}
+    for loop in loops.values():  # warm-up
+        loop(forces[:50])
+    medians, per_round = median_interleaved(
+        {name: (lambda loop=loop: loop(forces)) for name, loop in loops.items()}, rounds)
+    exact = "exact" if "exact" in medians else next(iter(medians))
+    context.notes.append(
+        f"{rounds} interleaved round(s) of {n_steps} steps of 10 ms each (the forces of the "
+        "FrictionPlant.fmu row: pulses, coasting, sticking, reversals), every case's state "
+        "carried over; parameters of the cases of scenarios/realism.toml; the FMU adds its "
+        "per-call cost (rows above) to each")
+    rows = []
+    for name, cost in medians.items():
+        ratio = statistics.median(m[name] / m[exact] for m in per_round)
+        rows.append(Row(f"{name}: Plant.step", cost * 1e6, "us/step"))
+        if name != exact:
+            rows.append(Row(f"{name}: ratio to {exact}", ratio, "x"))
+    return rows

@@ -13,6 +13,7 @@ examples:
   papwc bench --quick              # builds the FMUs into a temporary folder, fewer iterations
   papwc bench                      # the full measurement (about 80 s)
   papwc bench --fmu-dir build      # use FMUs already written by `papwc build`
+  papwc bench --realism            # also the wall time of scenarios/realism.toml (~1-2 min)
 """
 
 
@@ -29,6 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         help="folder with the FMUs written by `papwc build` (default: build them afresh "
         "into a temporary folder)",
     )
+    parser.add_argument(
+        "--realism", action="store_true",
+        help="also run scenarios/realism.toml on 2 workers and print its wall time",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -37,10 +42,13 @@ def run(args: argparse.Namespace) -> int:
     from papwc.fmubuild.fmus import build_all
 
     sections = load_sections()
+    options = frozenset(["realism"] if args.realism else [])
     if args.fmu_dir is not None:
-        run_sections(BenchContext(fmu_dir=args.fmu_dir, quick=args.quick), sections)
+        run_sections(BenchContext(fmu_dir=args.fmu_dir, quick=args.quick, options=options),
+                     sections)
         return 0
     with tempfile.TemporaryDirectory(prefix="papwcbench") as tmp:
         build_all(Path(tmp))
-        run_sections(BenchContext(fmu_dir=Path(tmp), quick=args.quick), sections)
+        run_sections(BenchContext(fmu_dir=Path(tmp), quick=args.quick, options=options),
+                     sections)
     return 0

@@ -48,7 +48,7 @@ from pathlib import Path
 from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, settings_for_kind
 from papwc.errors import BuildError, PapwcError
 from papwc.fmubuild.model_description import read_model_description
-from papwc.model.plant import PLANT_INPUTS, PLANT_OUTPUTS, SCENARIO_PLANT_FIELDS
+from papwc.model.plant import PLANT_DEFAULTS, PLANT_INPUTS, PLANT_OUTPUTS, SCENARIO_PLANT_FIELDS
 from papwc.model.settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, KIND_CODES
 from papwc.model.units import UNIT_DEFINITIONS
 from papwc.model.variables import FMU_DEFAULT_SENTINEL
@@ -167,7 +167,7 @@ def closed_loop_parameters(
         )
     settings: ControllerSettings = scenario.controllers[controller_index]
     plant: dict[str, float | int | str] = {
-        name: float(scenario.plant[name]) for name in SCENARIO_PLANT_FIELDS
+        name: type(PLANT_DEFAULTS[name])(scenario.plant[name]) for name in SCENARIO_PLANT_FIELDS
     }
     plant["x0"] = 0.0
     plant["v0"] = 0.0

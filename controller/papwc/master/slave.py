@@ -30,8 +30,8 @@ from typing import Any, Protocol
 
 from papwc.controllers import Controller
 from papwc.errors import FmuError
-from papwc.model import stickslip
-from papwc.model.plant import PLANT_DEFAULTS, PLANT_VARIABLES, plant_problems
+from papwc.model.dynamics import Plant
+from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES, plant_problems
 
 __all__ = ["ControllerSlave", "PhysicsSlave", "SignalSlave", "Slave"]
 
@@ -151,17 +151,23 @@ class _WatchedAttributes:
         raise NotImplementedError
 
 
+#: Parameters of the plant that are whole numbers.
+_INTEGER_PARAMETERS = frozenset(v.name for v in PLANT_PARAMETERS if v.type == "Integer")
+
+
 class PhysicsSlave(_WatchedAttributes):
-    """The friction plant computed in this process by :mod:`papwc.model.stickslip`.
+    """The friction plant computed in this process by :class:`papwc.model.dynamics.Plant`.
 
     Same variables, units and parameter checks as FrictionPlant.fmu (both read
-    :data:`papwc.model.plant.PLANT_VARIABLES`); fast, for analysis and tests.
+    :data:`papwc.model.plant.PLANT_VARIABLES`) and the same stepping object, so
+    the same trajectory to the last bit; fast, for analysis and tests.
     """
 
     def __init__(self, name: str = "plant") -> None:
         self.name = name
         self.params: dict[str, Any] = dict(PLANT_DEFAULTS)
-        self.x = self.v = self.x_meas = 0.0
+        self.plant = Plant(self.params)
+        self.x_meas = 0.0
         self.u = 0.0
         self.stuck = True
         self.p = SimpleNamespace(**self.params)
@@ -172,11 +178,31 @@ class PhysicsSlave(_WatchedAttributes):
         return {v.name: v.causality for v in PLANT_VARIABLES}
 
     def _path(self, name: str) -> str:
-        return name if name in ("x", "v", "u", "x_meas", "stuck") else f"p.{name}"
+        if name in ("x", "v"):
+            return f"plant.{name}"
+        return name if name in ("u", "x_meas", "stuck") else f"p.{name}"
+
+    @property
+    def x(self) -> float:
+        """Position, m."""
+        return self.plant.x
+
+    @x.setter
+    def x(self, value: float) -> None:
+        self.plant.x = value
+
+    @property
+    def v(self) -> float:
+        """Velocity, m/s (exactly 0.0 while the mass is stuck)."""
+        return self.plant.v
+
+    @v.setter
+    def v(self, value: float) -> None:
+        self.plant.v = value
 
     def _update_outputs(self) -> None:
-        self.x_meas = stickslip.quantize(self.x, self.params["x_resolution"])
-        self.stuck = self.v == 0.0
+        self.x_meas = self.plant.x_meas()
+        self.stuck = self.plant.v == 0.0
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
         """Parameters and input start values, applied at every (re)initialization."""
@@ -187,6 +213,10 @@ class PhysicsSlave(_WatchedAttributes):
         for key, value in values.items():
             if key == "u":
                 self.u = float(value)
+            elif key in _INTEGER_PARAMETERS:
+                # A whole float becomes an int; anything else is refused at initialization.
+                whole = isinstance(value, float) and value.is_integer()
+                self.params[key] = int(value) if whole else value
             else:
                 self.params[key] = float(value)
 
@@ -203,7 +233,7 @@ class PhysicsSlave(_WatchedAttributes):
             raise FmuError("exitInitializationMode refused: "
                            + "; ".join(f"parameter {m}" for _, m in problems))
         self.p = SimpleNamespace(**self.params)
-        self.x, self.v = self.params["x0"], self.params["v0"]
+        self.plant = Plant(self.params)
         self._update_outputs()
         self._refresh()
 
@@ -214,8 +244,9 @@ class PhysicsSlave(_WatchedAttributes):
         u = self.u
         if not (math.isfinite(u) and h > 0.0):
             raise FmuError(f"doStep at t = {t!r} s discarded: u = {u!r} N, step size = {h!r} s")
-        p = self.params
-        self.x, self.v = stickslip.step(self.x, self.v, u, h, p["m"], p["f_c"], p["f_s"], p["c"])
+        reason = self.plant.step(u, h)
+        if reason is not None:
+            raise FmuError(f"doStep at t = {t!r} s discarded: {reason}")
         self._update_outputs()
         self._refresh()
 

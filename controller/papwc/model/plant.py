@@ -7,13 +7,17 @@ SSP writer and the model description read them from here.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from typing import Any
 
 from .variables import Constraint, Variable, by_name, problems
 
 __all__ = [
+    "DEVIATION_CONSTRAINTS",
+    "DEVIATION_PARAMETERS",
     "INITIAL_STATE",
+    "MODE_FREQUENCY_MAX",
     "PLANT_CONSTRAINTS",
     "PLANT_DEFAULTS",
     "PLANT_INPUTS",
@@ -44,6 +48,41 @@ PLANT_PARAMETERS: tuple[Variable, ...] = (
 #: Parameters that give the state at the start of a simulation (not scenario fields:
 #: a maneuver starts at rest at 0).
 INITIAL_STATE = ("x0", "v0")
+
+#: Deviations of a real machine from Eq. (1), each absent at its default (the plant is then
+#: exactly Eq. (1)); equations in fmu_src/FrictionPlant/readme.md and papwc.model.effects.
+DEVIATION_PARAMETERS: tuple[Variable, ...] = (
+    Variable("v_s", "Stribeck velocity of the sliding friction f_c + (f_s - f_c)*exp(-(|v|/v_s)"
+             "^delta_s) (0 = no Stribeck effect)", "m/s", 0.0, min=0.0, max=10.0, nominal=1e-3),
+    Variable("delta_s", "Exponent of the Stribeck curve", "1", 2.0, min=1.0, max=10.0,
+             nominal=1.0),
+    Variable("sigma_0", "LuGre bristle stiffness (0 = stick-slip model without pre-sliding)",
+             "N/m", 0.0, min=0.0, max=1e12, nominal=1e7),
+    Variable("sigma_1", "LuGre bristle damping", "N.s/m", 0.0, min=0.0, max=1e9, nominal=1e5),
+    Variable("ripple", "Relative amplitude a of the friction factor 1 + a*sin(2*pi*x/"
+             "ripple_period + ripple_phase) (0 = none)", "1", 0.0, min=0.0, max=1.0,
+             max_open=True, nominal=0.1),
+    Variable("ripple_period", "Spatial period of the friction ripple", "m", 1e-3, min=1e-4,
+             max=1e3, nominal=1e-3),
+    Variable("ripple_phase", "Phase of the friction ripple at x = 0", "rad", 0.0,
+             min=-2.0 * math.pi, max=2.0 * math.pi, nominal=1.0),
+    Variable("f_s_spread", "Relative spread of the breakaway force, redrawn uniformly in "
+             "f_s*(1 +- f_s_spread) each time the mass sticks (0 = fixed f_s)", "1", 0.0,
+             min=0.0, max=1.0, max_open=True, nominal=0.1),
+    Variable("seed", "Seed of the random stiction draws and of the encoder noise", "", 0,
+             type="Integer", min=0, max=2**31 - 1),
+    Variable("tau_u", "Time constant of the first-order lag between u and the applied force "
+             "(0 = none)", "s", 0.0, min=0.0, max=10.0, nominal=1e-3),
+    Variable("m_d", "Motor mass driven by u and coupled to the table by k_t and c_t "
+             "(0 = rigid drive)", "kg", 0.0, min=0.0, max=1e6, nominal=100.0),
+    Variable("k_t", "Stiffness of the motor-table coupling", "N/m", 0.0, min=0.0, max=1e12,
+             nominal=1e6),
+    Variable("c_t", "Damping of the motor-table coupling", "N.s/m", 0.0, min=0.0, max=1e9,
+             nominal=100.0),
+    Variable("noise_std", "Standard deviation of the Gaussian encoder noise added to x before "
+             "quantization", "m", 0.0, min=0.0, max=1.0, nominal=1e-7),
+)
+PLANT_PARAMETERS = PLANT_PARAMETERS + DEVIATION_PARAMETERS
 
 #: Names of the ``[plant]`` fields of a scenario file.
 SCENARIO_PLANT_FIELDS: tuple[str, ...] = tuple(
@@ -88,6 +127,78 @@ def _f_s_at_least_f_c(values: Mapping[str, Any]) -> tuple[str, str] | None:
 
 #: Rules between plant parameters.
 PLANT_CONSTRAINTS: tuple[Constraint, ...] = (Constraint(("f_c", "f_s"), _f_s_at_least_f_c),)
+
+
+def _lowest_breakaway_at_least_f_c(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    f_c, f_s, spread = values["f_c"], values["f_s"], values["f_s_spread"]
+    lowest = f_s * (1.0 - spread)
+    if spread > 0.0 and lowest < f_c:
+        return "f_s_spread", (f"f_s_spread = {spread!r}: the lowest breakaway force "
+                              f"f_s*(1 - f_s_spread) = {lowest!r} N must be >= f_c = {f_c!r} N")
+    return None
+
+
+def _lugre_needs_sliding_friction(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    if values["sigma_0"] > 0.0 and not values["f_c"] > 0.0:
+        return "sigma_0", (f"sigma_0 = {values['sigma_0']!r} N/m: the LuGre model needs "
+                           f"f_c > 0 (its bristle equation divides by the sliding friction); "
+                           f"f_c = {values['f_c']!r} N")
+    return None
+
+
+def _random_stiction_needs_sticking(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    if values["f_s_spread"] > 0.0 and values["sigma_0"] > 0.0:
+        return "f_s_spread", (f"f_s_spread = {values['f_s_spread']!r}: random stiction redraws "
+                              "the breakaway force each time the mass sticks, and with LuGre "
+                              f"(sigma_0 = {values['sigma_0']!r} N/m > 0) it never sticks; "
+                              "set f_s_spread or sigma_0 to 0")
+    return None
+
+
+def _flexible_drive_needs_a_spring(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    if values["m_d"] > 0.0 and not values["k_t"] > 0.0:
+        return "k_t", (f"k_t = {values['k_t']!r} N/m: a flexible drive (m_d = "
+                       f"{values['m_d']!r} kg > 0) needs a coupling stiffness k_t > 0")
+    return None
+
+
+#: Highest frequency of the LuGre pre-sliding mode and of the flexible mode, Hz: the
+#: integrator resolves them, and a stiffer spring is a rigid one at the 10 ms of a step.
+MODE_FREQUENCY_MAX = 1e4
+
+
+def _presliding_mode_resolvable(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    sigma_0, m = values["sigma_0"], values["m"]
+    if sigma_0 > 0.0:
+        f = math.sqrt(sigma_0 / m) / (2.0 * math.pi)
+        if f > MODE_FREQUENCY_MAX:
+            return "sigma_0", (f"sigma_0 = {sigma_0!r} N/m: the pre-sliding mode "
+                               f"sqrt(sigma_0/m)/(2*pi) = {f:.6g} Hz (m = {m!r} kg) must be "
+                               f"<= {MODE_FREQUENCY_MAX:g} Hz")
+    return None
+
+
+def _flexible_mode_resolvable(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    m, m_d, k_t = values["m"], values["m_d"], values["k_t"]
+    if m_d > 0.0 and k_t > 0.0:
+        f = math.sqrt(k_t * (1.0 / m + 1.0 / m_d)) / (2.0 * math.pi)
+        if f > MODE_FREQUENCY_MAX:
+            return "k_t", (f"k_t = {k_t!r} N/m: the flexible mode sqrt(k_t*(1/m + 1/m_d))/(2*pi) "
+                           f"= {f:.6g} Hz (m = {m!r} kg, m_d = {m_d!r} kg) must be <= "
+                           f"{MODE_FREQUENCY_MAX:g} Hz; a stiffer drive is rigid: m_d = 0")
+    return None
+
+
+#: Rules between the deviation parameters and the others.
+DEVIATION_CONSTRAINTS: tuple[Constraint, ...] = (
+    Constraint(("f_c", "f_s", "f_s_spread"), _lowest_breakaway_at_least_f_c),
+    Constraint(("f_c", "sigma_0"), _lugre_needs_sliding_friction),
+    Constraint(("f_s_spread", "sigma_0"), _random_stiction_needs_sticking),
+    Constraint(("m_d", "k_t"), _flexible_drive_needs_a_spring),
+    Constraint(("m", "sigma_0"), _presliding_mode_resolvable),
+    Constraint(("m", "m_d", "k_t"), _flexible_mode_resolvable),
+)
+PLANT_CONSTRAINTS = PLANT_CONSTRAINTS + DEVIATION_CONSTRAINTS
 
 _BY_NAME = by_name(PLANT_PARAMETERS)
 

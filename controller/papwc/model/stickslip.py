@@ -29,6 +29,7 @@ __all__ = [
     "quantize",
     "simulate",
     "step",
+    "stop_time",
 ]
 
 _exp = math.exp
@@ -141,6 +142,35 @@ def step(
         # The zero crossing fell on the interval's end within rounding.
         v_end = 0.0
     return x_end, v_end
+
+
+def stop_time(v: float, u: float, m: float, f_c: float, c: float) -> float:
+    """Time a sliding mass takes to reach v = 0 under the constant force ``u``.
+
+    The instant ``t_star`` of :func:`step`, computed by the same expression.
+
+    Parameters
+    ----------
+    v : float
+        Velocity at the start, m/s.
+    u : float
+        Force, N, constant.
+    m, f_c, c : float
+        Mass (kg), Coulomb friction (N), viscous damping (N.s/m).
+
+    Returns
+    -------
+    float
+        Time to rest, s: 0 if ``v`` is 0, ``inf`` if the mass does not decelerate.
+    """
+    if v == 0.0:
+        return 0.0
+    s = 1.0 if v > 0.0 else -1.0
+    force = u - s * f_c
+    if not s * force < 0.0:
+        return math.inf
+    y = -c * v / force
+    return -(m * v / force) * _psi(y)
 
 
 def coast_to_rest(

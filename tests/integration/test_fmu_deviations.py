@@ -1,0 +1,223 @@
+"""FrictionPlant.fmu with the deviations of a real machine, through fmpy and the master.
+
+The FMU and the master's in-process plant step the same model-layer object, so
+their trajectories must agree bit for bit; the FMU state (get/set, serialize)
+must carry every state of the deviations, the random generators included;
+invalid deviation parameters are refused at initialization with their name,
+value and range.
+"""
+
+from __future__ import annotations
+
+import random
+import xml.etree.ElementTree as ET
+import zipfile
+from ctypes import byref
+from pathlib import Path
+
+import pytest
+from fmpy import read_model_description
+from fmpy.fmi1 import calloc, free
+from fmpy.fmi2 import (
+    FMU2Slave,
+    fmi2CallbackAllocateMemoryTYPE,
+    fmi2CallbackFreeMemoryTYPE,
+    fmi2CallbackFunctions,
+    fmi2CallbackLoggerTYPE,
+)
+from fmpy.logging import addLoggerProxy
+from fmpy.validation import validate_fmu
+
+from papwc.controllers.settings import ControllerSettings
+from papwc.errors import FmuError
+from papwc.master import FmuSlave, Maneuver, PhysicsSlave, run_controller
+from papwc.model.plant import DEVIATION_PARAMETERS
+from papwc.model.stickslip import simulate
+
+T = 0.01
+
+#: The cases of scenarios/realism.toml, and all deviations together.
+CASES = {
+    "stribeck": {"v_s": 1e-3},
+    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
+    "ripple": {"ripple": 0.1, "ripple_period": 1e-3},
+    "stiction": {"f_s_spread": 0.1, "seed": 4},
+    "lag": {"tau_u": 2e-3},
+    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
+    "noise": {"noise_std": 2e-7, "x_resolution": 1e-7, "seed": 9},
+    "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
+            "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "noise_std": 2e-7,
+            "x_resolution": 1e-7},
+}
+OUTPUTS = ["x", "v", "x_meas"]
+
+
+def forces(seed: int, n: int) -> list[float]:
+    rng = random.Random(seed)
+    return [rng.choice((0.0, 0.0, 300.0, -300.0, 120.0, 200.0, -90.0)) for _ in range(n)]
+
+
+class Instance:
+    """One FrictionPlant instance through fmpy's FMU2Slave, its log kept."""
+
+    def __init__(self, unzipdir: Path, params: dict) -> None:
+        md = read_model_description(str(unzipdir))
+        self.vr = {v.name: v.valueReference for v in md.modelVariables}
+        self.types = {v.name: v.type for v in md.modelVariables}
+        self.log: list[str] = []
+        self._callbacks = fmi2CallbackFunctions()
+        self._logger = fmi2CallbackLoggerTYPE(
+            lambda c, name, status, category, message: self.log.append(message.decode()))
+        self._callbacks.logger = self._logger
+        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+        addLoggerProxy(byref(self._callbacks))
+        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(unzipdir),
+                             modelIdentifier="FrictionPlant", instanceName="plant")
+        self.fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
+        self.fmu.setupExperiment(startTime=0.0)
+        self.fmu.enterInitializationMode()
+        for name, value in params.items():
+            if self.types[name] == "Integer":
+                self.fmu.setInteger([self.vr[name]], [value])
+            else:
+                self.fmu.setReal([self.vr[name]], [value])
+        self.fmu.exitInitializationMode()
+        self.k = 0
+
+    def step(self, u: float) -> list[float]:
+        self.fmu.setReal([self.vr["u"]], [u])
+        self.fmu.doStep(self.k * T, T)
+        self.k += 1
+        return self.outputs()
+
+    def outputs(self) -> list[float]:
+        return self.fmu.getReal([self.vr[n] for n in OUTPUTS])
+
+    def close(self) -> None:
+        self.fmu.terminate()
+        self.fmu.freeInstance()
+
+
+@pytest.fixture
+def instances(friction_plant_unzipped: Path):
+    made: list[Instance] = []
+
+    def make(params: dict) -> Instance:
+        made.append(Instance(friction_plant_unzipped, params))
+        return made[-1]
+
+    yield make
+    for instance in made:
+        instance.close()
+
+
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_fmu_and_in_process_plant_agree_bit_for_bit(case: str, instances) -> None:
+    params = CASES[case]
+    fmu = instances(params)
+    physics = PhysicsSlave()
+    physics.set_start_values(params)
+    index = physics.watch(OUTPUTS)
+    physics.initialize()
+    assert fmu.outputs() == [physics.values[i] for i in index]
+    for k, u in enumerate(forces(len(case), 120)):
+        physics.u = u
+        physics.do_step(k * T, T)
+        assert fmu.step(u) == [physics.values[i] for i in index], k
+
+
+def test_defaults_are_still_eq1_exactly(instances) -> None:
+    fmu = instances({})
+    u_seq = forces(1, 150)
+    states = simulate(u_seq, T, 150.0, 100.0, 130.0, 700.0)
+    for u, (x, v) in zip(u_seq, states[1:], strict=True):
+        assert fmu.step(u)[:2] == [x, v]
+
+
+@pytest.mark.parametrize("case", ("stiction", "noise", "all", "lugre", "flexible"))
+def test_state_get_set_and_serialize_continue_bit_for_bit(case: str, instances) -> None:
+    params = CASES[case]
+    u_seq = forces(7, 80)
+    a = instances(params)
+    for u in u_seq[:40]:
+        a.step(u)
+    state = a.fmu.getFMUstate()
+    serialized = a.fmu.serializeFMUstate(state)
+    expected = [a.step(u) for u in u_seq[40:]]
+    # The same instance, back to the saved state.
+    a.fmu.setFMUstate(state)
+    a.fmu.freeFMUstate(state)
+    assert [a.step(u) for u in u_seq[40:]] == expected
+    # Another instance, from the serialized state.
+    b = instances(params)
+    restored = b.fmu.deSerializeFMUstate(serialized)
+    b.fmu.setFMUstate(restored)
+    b.fmu.freeFMUstate(restored)
+    assert [b.step(u) for u in u_seq[40:]] == expected
+    assert not [m for m in a.log + b.log if "refused" in m]
+
+
+def test_random_stiction_and_noise_follow_the_seed(instances) -> None:
+    u_seq = forces(3, 150)
+    runs = {}
+    for seed in (1, 1, 2):
+        fmu = instances({"f_s_spread": 0.1, "noise_std": 2e-7, "x_resolution": 1e-7,
+                         "seed": seed})
+        runs.setdefault(seed, []).append([fmu.step(u) for u in u_seq])
+    assert runs[1][0] == runs[1][1]
+    assert runs[1][0] != runs[2][0]
+
+
+@pytest.mark.parametrize(("params", "text"), [
+    ({"ripple": 1.5}, "parameter ripple = 1.5: must satisfy 0 <= ripple < 1"),
+    ({"tau_u": -1.0}, "parameter tau_u = -1.0 s: must satisfy 0 <= tau_u <= 10 s"),
+    ({"seed": -3}, "parameter seed = -3: must be a whole number >= 0"),
+    ({"m_d": 20.0}, "k_t = 0.0 N/m: a flexible drive (m_d = 20.0 kg > 0) needs a coupling"),
+    ({"f_s_spread": 0.5}, "the lowest breakaway force f_s*(1 - f_s_spread) = 65.0 N"),
+])
+def test_invalid_deviation_parameter_is_refused_at_initialization(
+        friction_plant_fmu: Path, params: dict, text: str) -> None:
+    plant = FmuSlave(friction_plant_fmu)
+    try:
+        plant.set_start_values(params)
+        with pytest.raises(FmuError, match="refused the parameters") as info:
+            plant.initialize()
+        assert text in str(info.value)
+    finally:
+        plant.close()
+
+
+def test_model_description_declares_the_deviations(friction_plant_fmu: Path) -> None:
+    assert validate_fmu(str(friction_plant_fmu)) == []
+    with zipfile.ZipFile(friction_plant_fmu) as archive:
+        root = ET.fromstring(archive.read("modelDescription.xml"))
+    declared = {sv.get("name"): (sv.get("causality"), next(iter(sv)))
+                for sv in root.iter("ScalarVariable")}
+    for var in DEVIATION_PARAMETERS:
+        causality, typed = declared[var.name]
+        assert causality == "parameter"
+        assert typed.tag == var.type
+        assert float(typed.get("start")) == var.default
+        assert float(typed.get("min")) == var.min
+        assert float(typed.get("max")) == var.max
+        if var.type == "Real":
+            assert typed.get("unit") == var.unit
+
+
+def test_closed_loop_through_the_fmu_equals_the_in_process_plant(friction_plant_fmu) -> None:
+    params = CASES["all"]
+    maneuver = Maneuver(x_ref=1e-3, T=T, duration=0.6, iterations=2)
+    settings = ControllerSettings(kind="papwc", t_p_max=0.03, K_c=0.8)
+    results = []
+    for plant in (FmuSlave(friction_plant_fmu), PhysicsSlave()):
+        try:
+            plant.set_start_values(params)
+            results.append(run_controller(plant, settings, maneuver))
+        finally:
+            plant.close()
+    fmu, physics = results
+    assert not fmu.error and not physics.error
+    for a, b in zip(fmu.traces, physics.traces, strict=True):
+        for name in ("x", "v", "x_meas", "u"):
+            assert a.column(name) == b.column(name)
