@@ -178,7 +178,7 @@ def test_plant_model_description_contract(friction_plant_fmu: Path) -> None:
     assert md.coSimulation.canGetAndSetFMUstate
     assert md.coSimulation.canSerializeFMUstate
     units = {u.name: u for u in md.unitDefinitions}
-    assert set(units) == {"kg", "N", "N.s/m", "m", "m/s"}
+    assert set(units) == {"kg", "N", "N.s/m", "m", "m/s", "N/m", "s", "rad", "1"}
     assert (units["N"].baseUnit.kg, units["N"].baseUnit.m, units["N"].baseUnit.s) == (1, 1, -2)
     assert (units["N.s/m"].baseUnit.kg, units["N.s/m"].baseUnit.s) == (1, -1)
     assert (units["m/s"].baseUnit.m, units["m/s"].baseUnit.s) == (1, -1)
@@ -196,7 +196,10 @@ def test_plant_model_description_contract(friction_plant_fmu: Path) -> None:
         "x_meas": ("output", "continuous", "m", None),
     }
     variables = {v.name: v for v in md.modelVariables}
-    assert set(variables) == set(expected) | {"stuck"}
+    deviations = {"v_s", "delta_s", "sigma_0", "sigma_1", "ripple", "ripple_period",
+                  "ripple_phase", "f_s_spread", "seed", "tau_u", "m_d", "k_t", "c_t",
+                  "noise_std"}
+    assert set(variables) == set(expected) | {"stuck"} | deviations
     assert set(variables) == {v.name for v in PLANT_VARIABLES}
     for name, (causality, variability, unit, start) in expected.items():
         v = variables[name]
@@ -214,12 +217,16 @@ def test_plant_model_description_contract(friction_plant_fmu: Path) -> None:
         if v.causality == "output":
             assert v.initial == "calculated", v.name
     # ranges where the physics is exact in double precision (papwc.model.plant)
-    assert {n: v.min for n, v in variables.items() if v.min is not None} == {
+    base = set(expected) - {"u", "x", "v", "x_meas"}
+    assert {n: v.min for n, v in variables.items() if v.min is not None and n in base} == {
         "m": "1e-06", "f_c": "0.0", "f_s": "0.0", "c": "0.0", "x_resolution": "0.0",
         "x0": "-1000000.0", "v0": "-1000000.0"}
-    assert {n: v.max for n, v in variables.items() if v.max is not None} == {
+    assert {n: v.max for n, v in variables.items() if v.max is not None and n in base} == {
         "m": "1000000000.0", "f_c": "1000000000.0", "f_s": "1000000000.0",
         "c": "1000000000.0", "x_resolution": "1.0", "x0": "1000000.0", "v0": "1000000.0"}
+    # every deviation is bounded, and its default leaves the plant of the paper
+    assert all(variables[n].min is not None and variables[n].max is not None
+               for n in deviations)
     de = md.defaultExperiment
     assert (float(de.startTime), float(de.stopTime), float(de.stepSize)) == (0.0, 1.0, 0.01)
 

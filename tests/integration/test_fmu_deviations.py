@@ -172,7 +172,7 @@ def test_random_stiction_and_noise_follow_the_seed(instances) -> None:
 @pytest.mark.parametrize(("params", "text"), [
     ({"ripple": 1.5}, "parameter ripple = 1.5: must satisfy 0 <= ripple < 1"),
     ({"tau_u": -1.0}, "parameter tau_u = -1.0 s: must satisfy 0 <= tau_u <= 10 s"),
-    ({"seed": -3}, "parameter seed = -3: must be a whole number >= 0"),
+    ({"seed": -3}, "parameter seed = -3: must be a whole number 0 <= seed <= 2147483647"),
     ({"m_d": 20.0}, "k_t = 0.0 N/m: a flexible drive (m_d = 20.0 kg > 0) needs a coupling"),
     ({"f_s_spread": 0.5}, "the lowest breakaway force f_s*(1 - f_s_spread) = 65.0 N"),
 ])
