@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from papwc.errors import PapwcError
+from papwc.commands import default_out
 
 HELP = (
     "build the FMUs (FrictionPlant.fmu, PulseController.fmu, PapwcTrivial.fmu) and "
@@ -56,14 +56,9 @@ def run(args: argparse.Namespace) -> int:
     """Build every FMU and the SSP into ``args.out``; print each path written; return 0."""
     from papwc.fmubuild.fmus import build_all
     from papwc.fmubuild.ssp import build_closed_loop_ssp
-    from papwc.resources import checkout_root, scenario_file
+    from papwc.resources import scenario_file
 
-    out = args.out
-    if out is None:
-        root = checkout_root()
-        if root is None:
-            raise PapwcError("--out DIR is required: papwc is not running from a checkout")
-        out = root / "build"
+    out = default_out(args.out, "build")
     for path in build_all(out):
         print(path)
     scenario = args.scenario if args.scenario is not None else scenario_file("paper.toml")

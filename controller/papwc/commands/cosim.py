@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from papwc.errors import PapwcError
+from papwc.commands import default_out
 
 HELP = ("run an SSP (FMI 2.0 Co-Simulation FMUs, parameter bindings, fixed step) with the "
         "master as libcosim runs it; write a CSV and a plot")
@@ -42,14 +42,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run the SSP; print what was written; 0, or 1 if a step failed (rows before it kept)."""
     from papwc.cosim import cosim
-    from papwc.resources import checkout_root
-
-    out = args.out
-    if out is None:
-        root = checkout_root()
-        if root is None:
-            raise PapwcError("--out DIR is required: papwc is not running from a checkout")
-        out = root / "results" / "cosim"
+    out = default_out(args.out, "results", "cosim")
     # The master reads the FMUs' log and reports a refusal itself, in one line.
     os.environ["PAPWC_FMU_STDERR"] = "0"
     result, csv_path, png_path = cosim(args.ssp, out, args.variables, args.step, args.stop)

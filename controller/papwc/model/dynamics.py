@@ -447,24 +447,12 @@ class Plant:
             if last:
                 h = remaining
             rates = self._rates_at(u, s)
-            f0 = rates(y)
-            jac = self._jacobian(y, u, s)
-            while True:
-                steps += 1
-                if steps > MAX_STEPS:
-                    return (f"the integrator needed more than {MAX_STEPS} steps in one "
-                            "communication step")
-                y1, err, stages = rodas4_step(rates, y, f0, jac, h)
-                if s == 0.0 and not lugre:
-                    # Stuck: the table does not move (exactly, whatever the rounding).
-                    y1[0], y1[1], err[0], err[1] = y[0], 0.0, 0.0, 0.0
-                q = self._error(y, y1, err)
-                if q <= 1.0:
-                    break
-                h *= max(0.1, 0.9 * q**-0.25) if _isfinite(q) else 0.1
-                last = False
-                if h <= 1e-15 * h_total:
-                    return f"the integrator's step size fell below {h!r} s"
+            try:
+                y1, stages, q, h, steps, shrunk = self._accepted_step(
+                    rates, y, u, s, h, steps, 1e-15 * h_total)
+            except ArithmeticError as exc:
+                return str(exc)
+            last = last and not shrunk
             grow = min(5.0, 0.9 * q**-0.25) if q > 0.0 else 5.0
             theta = None if lugre else self._event(y, y1, stages, u, s)
             if theta is None:
@@ -522,24 +510,41 @@ class Plant:
             last = h >= remaining
             if last:
                 h = remaining
-            f0 = rates(y)
-            jac = self._jacobian(y, u, s)
-            while True:
-                steps += 1
-                if steps > MAX_STEPS:
-                    raise ArithmeticError("no step size met the tolerance up to an event")
-                y1, err, _ = rodas4_step(rates, y, f0, jac, h)
-                if s == 0.0 and self.lugre is None:
-                    y1[0], y1[1], err[0], err[1] = y[0], 0.0, 0.0, 0.0
-                q = self._error(y, y1, err)
-                if q <= 1.0:
-                    break
-                h *= max(0.1, 0.9 * q**-0.25) if _isfinite(q) else 0.1
-                last = False
+            y1, _, q, h, steps, shrunk = self._accepted_step(rates, y, u, s, h, steps, 0.0)
+            last = last and not shrunk
             y = y1
             t = h_end if last else t + h
             h *= min(5.0, 0.9 * q**-0.25) if q > 0.0 else 5.0
         return y, steps
+
+    def _accepted_step(self, rates: Any, y: list[float], u: float, s: float, h: float,
+                       steps: int, h_floor: float) -> tuple[list[float], tuple, float, float,
+                                                            int, bool]:
+        """One RODAS4 step from ``y`` that meets the tolerance, shrinking ``h`` (s) until it does.
+
+        Returns the new state, the stages, the error norm q (<= 1), the step size
+        taken, the steps counted so far and whether ``h`` was shrunk. Raises
+        ArithmeticError past ``MAX_STEPS`` steps or when ``h`` falls to ``h_floor``.
+        """
+        f0 = rates(y)
+        jac = self._jacobian(y, u, s)
+        shrunk = False
+        while True:
+            steps += 1
+            if steps > MAX_STEPS:
+                raise ArithmeticError(f"the integrator needed more than {MAX_STEPS} steps in "
+                                      "one communication step")
+            y1, err, stages = rodas4_step(rates, y, f0, jac, h)
+            if s == 0.0 and self.lugre is None:
+                # Stuck: the table does not move (exactly, whatever the rounding).
+                y1[0], y1[1], err[0], err[1] = y[0], 0.0, 0.0, 0.0
+            q = self._error(y, y1, err)
+            if q <= 1.0:
+                return y1, stages, q, h, steps, shrunk
+            h *= max(0.1, 0.9 * q**-0.25) if _isfinite(q) else 0.1
+            shrunk = True
+            if h <= h_floor:
+                raise ArithmeticError(f"the integrator's step size fell below {h!r} s")
 
     def _event(self, y: list[float], y1: list[float], stages: tuple[list[float], ...],
                u: float, s: float) -> float | None:
