@@ -262,16 +262,14 @@ def field_table() -> str:
     def row(table: str, var) -> None:
         default = ("computed (see description)" if var.default is None
                    else "required" if var.name == "kind" else repr(var.default))
-        allowed = (", ".join(repr(c) for c in var.choices) if var.choices
-                   else "true or false" if var.type == "Boolean"
-                   else "a string" if var.type == "String" else var.range_text())
+        allowed = var.allowed_text()
         if var.name == "kind":
             allowed = ", ".join(repr(k) for k in sorted(CONTROLLER_KINDS))
         if var.kinds:
             table += " (" + ", ".join(var.kinds) + ")"
         unit = var.unit if var.unit not in ("", "1") else "-"
-        lines.append(f"| {table} | `{var.name}` | {unit} | {default} | {allowed} "
-                     f"{var.note} | {var.description} |".replace("  |", " |"))
+        lines.append(f"| {table} | `{var.name}` | {unit} | {default} | {allowed} | "
+                     f"{var.description} |")
 
     for var in PLANT_PARAMETERS:
         if var.name in SCENARIO_PLANT_FIELDS:

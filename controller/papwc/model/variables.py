@@ -163,6 +163,16 @@ class Variable:
             return f"{'<' if self.max_open else '<='} {_num(hi)}{self.unit_suffix}"
         return "any finite number"
 
+    def allowed_text(self) -> str:
+        """What values are allowed, in words (choices, true or false, or the range and its note)."""
+        if self.choices:
+            return ", ".join(repr(c) for c in self.choices)
+        if self.type == "Boolean":
+            return "true or false"
+        if self.type == "String":
+            return "a string"
+        return f"{self.range_text()} {self.note}".rstrip()
+
     def check(self, value: Any) -> str | None:
         """What is wrong with ``value`` (the text after ``"must"``), or None if it is allowed."""
         if self.optional and value is None:
