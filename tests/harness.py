@@ -28,6 +28,38 @@ from typing import Any, NamedTuple
 from papwc.master import Execution, FixedStepAlgorithm, SignalSlave, Slave
 from papwc.model.stickslip import simulate
 
+#: A valid scenario: one PAPWC controller, one 0.5 s iteration.
+GOOD = """
+name = "t"
+[plant]
+m = 150.0
+[maneuver]
+x_ref = 0.01
+T = 0.01
+duration = 0.5
+iterations = 1
+[[controller]]
+kind = "papwc"
+"""
+
+#: A short version of the paper's scenario (two iterations of 0.5 s).
+SHORT_PAPER = """
+name = "short"
+[maneuver]
+x_ref = 0.01
+duration = 0.5
+iterations = 2
+[[controller]]
+kind = "pwc"
+t_p_max = 0.03
+K_c = 0.5
+tolerance = 0.0
+[[controller]]
+kind = "papwc"
+t_p_max = 0.03
+K_c = 0.8
+"""
+
 __all__ = [
     "FmuInstance",
     "Message",

@@ -5,24 +5,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from harness import SHORT_PAPER
 
 from papwc.battery import load_battery, local_dask_cluster, run_battery
 
-BATTERY = """\
-name = "dasksmall"
-[maneuver]
-x_ref = 0.01
-duration = 0.5
-iterations = 2
-[[controller]]
-kind = "pwc"
-t_p_max = 0.03
-K_c = 0.5
-tolerance = 0.0
-[[controller]]
-kind = "papwc"
-t_p_max = 0.03
-K_c = 0.8
+BATTERY = SHORT_PAPER.replace('name = "short"', 'name = "dasksmall"').lstrip() + """\
 [sweep]
 "plant.f_s" = [130.0, 90.0]
 [monte_carlo]

@@ -9,41 +9,11 @@ import sys
 from pathlib import Path
 
 import pytest
+from harness import GOOD, SHORT_PAPER
 
 from papwc.cli import COMMANDS, main
 from papwc.fmubuild.fmus import is_current
 from papwc.resources import checkout_root
-
-GOOD = """
-name = "t"
-[plant]
-m = 150.0
-[maneuver]
-x_ref = 0.01
-T = 0.01
-duration = 0.5
-iterations = 1
-[[controller]]
-kind = "papwc"
-"""
-
-#: A short version of the paper's scenario (two iterations of 0.5 s).
-SHORT_PAPER = """
-name = "short"
-[maneuver]
-x_ref = 0.01
-duration = 0.5
-iterations = 2
-[[controller]]
-kind = "pwc"
-t_p_max = 0.03
-K_c = 0.5
-tolerance = 0.0
-[[controller]]
-kind = "papwc"
-t_p_max = 0.03
-K_c = 0.8
-"""
 
 
 def _write(folder: Path, text: str, name: str = "s.toml") -> Path:

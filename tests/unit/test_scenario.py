@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 import pytest
+from harness import GOOD
 
 from papwc.controllers import CONTROLLER_KINDS
 from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, settings_for_kind
@@ -20,19 +21,6 @@ from papwc.model.variables import Variable, problems
 from papwc.scenario import controller_label, load_scenario, parse_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
-
-GOOD = """
-name = "t"
-[plant]
-m = 150.0
-[maneuver]
-x_ref = 0.01
-T = 0.01
-duration = 0.5
-iterations = 1
-[[controller]]
-kind = "papwc"
-"""
 
 
 def _write(tmp_path: Path, text: str) -> Path:
