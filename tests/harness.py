@@ -319,6 +319,9 @@ class ScriptedController:
         self.T = T
         self.mode = 1
         self.pulses = 0
+        self.f_low = math.nan
+        self.outcome = 0  # papwc.controllers.Outcome.ACTIVE
+        self.outcome_reason = 0
         self.revision = 0
 
     def reset(self) -> None:

@@ -29,7 +29,8 @@ from papwc.scenario import Scenario
 
 SUMMARY_COLUMNS = [
     "controller", "kind", "t_p_max", "iteration", "final_error_m", "pulses", "settle_time_s",
-    "limit_cycle", "cycle_p2p_m", "b_hat", "f_c_hat", "status", "message",
+    "limit_cycle", "cycle_p2p_m", "b_hat", "f_c_hat", "outcome", "outcome_reason", "status",
+    "message",
 ]  # fmt: skip
 
 def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> Path:

@@ -43,7 +43,8 @@ class PulseController(CheckedSlave):
     ``x_ref_offset + x_ref``, so a host that leaves ``x_ref`` unconnected sets the
     parameter ``x_ref_offset``); ``u`` (N) is the
     force to hold over the next sample, and ``b_hat`` (m/s2), ``f_c_hat`` (N),
-    ``pulses`` and ``mode`` let the controller be observed.
+    ``pulses``, ``mode``, ``f_low`` (N), ``outcome`` and ``outcome_reason`` let
+    the controller be observed.
     """
 
     author = "papwc"
@@ -74,13 +75,18 @@ class PulseController(CheckedSlave):
 
     # -- variables -------------------------------------------------------------------------
     def output_getter(self, var):
-        """Estimates, pulses and mode come from the controller."""
+        """Estimates, pulses, mode and outcome come from the controller."""
         if var.name in ("b_hat", "f_c_hat"):
             return lambda: self._estimate(var.name)
         if var.name == "pulses":
             return lambda: 0 if self._controller is None else self._controller.pulses
         if var.name == "mode":
             return lambda: Mode.SETTLED if self._controller is None else self._controller.mode
+        if var.name == "f_low":
+            return lambda: self._f_low()
+        if var.name in ("outcome", "outcome_reason"):
+            name = var.name
+            return lambda: 0 if self._controller is None else getattr(self._controller, name)
         if var.name == "maneuver":
             return lambda: self.maneuver
         return None
@@ -108,6 +114,15 @@ class PulseController(CheckedSlave):
                   if name not in ("T", "kind_code", "x_ref_offset")}
         values["kind"] = self._kind()[0]
         return ControllerSettings.from_mapping(values)
+
+    def _f_low(self) -> float:
+        """Lowest pulse height of the controller (before it exists: of the parameters), N."""
+        if self._controller is not None:
+            return float(self._controller.f_low)
+        try:
+            return float(make_controller(self._settings(), self.T).f_low)
+        except (ValueError, TypeError, ZeroDivisionError):
+            return math.nan
 
     def _estimate(self, name: str) -> float:
         """Estimate ``name``; before the controller exists, of the current parameters."""

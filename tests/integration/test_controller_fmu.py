@@ -119,7 +119,9 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
     assert {n for n, v in variables.items() if v.causality == "input"} == {
         "x_meas", "x_ref", "maneuver"}
     outputs = {n for n, v in variables.items() if v.causality == "output"}
-    assert outputs == {"u", "b_hat", "f_c_hat", "pulses", "mode"}
+    assert outputs == {"u", "b_hat", "f_c_hat", "pulses", "mode", "f_low", "outcome",
+                       "outcome_reason"}
+    assert variables["outcome"].type == variables["outcome_reason"].type == "Integer"
     table = {v.name: v for v in PULSE_CONTROLLER_VARIABLES}
     assert set(variables) == set(table)
     for name, var in variables.items():

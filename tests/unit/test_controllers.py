@@ -135,7 +135,7 @@ def test_papwc_learns_physical_values_when_c_is_zero():
 
 
 def test_pwc_width_rounding_and_bound():
-    ctl = PwcController(ControllerSettings(kind="pwc", t_p_max=0.03), T)
+    ctl = PwcController(ControllerSettings(kind="pwc", t_p_max=0.03, safeguards=False), T)
     b = ctl.estimator.b_hat
     assert ctl.plan_pulse(b * 0.01**2) == (1, 300.0)  # exactly one sample
     assert ctl.plan_pulse(-b * 0.0101**2) == (2, -300.0)  # rounded up

@@ -99,7 +99,7 @@ def _pwc(**kw) -> PwcController:
 
 @pytest.mark.parametrize("regressor", [0, 1])
 def test_pwc_estimator_is_fed_the_applied_or_the_planned_width(regressor):
-    c = _pwc(regressor=regressor)
+    c = _pwc(regressor=regressor, safeguards=False)  # the paper's law, Eq. (5)
     b0 = c.estimator.b_hat
     n, f_p = c.plan_pulse(1e-3)
     t_plan = math.sqrt(0.6 * 1e-3 / b0)

@@ -39,6 +39,9 @@ _WARNINGS_KEPT = 20
 _METRIC_TYPES = {"final_error_m": "number", "pulses": "int", "settle_time_s": "number",
                  "limit_cycle": "bool", "cycle_p2p_m": "number", "b_hat": "number",
                  "f_c_hat": "number"}
+#: Metrics a record may lack (older records), checked where present.
+_OPTIONAL_METRIC_TYPES = {"outcome": "str", "outcome_reason": "str", "pulse_ratio": "number",
+                          "ends_farther": "bool"}
 
 
 def _is_number(value) -> bool:
@@ -73,9 +76,12 @@ def record_problem(obj) -> str | None:
                     isinstance(it.get("iteration"), int)
                     and not isinstance(it.get("iteration"), bool)):
                 return "an iteration lacks its number or error"
-            for name, kind in _METRIC_TYPES.items():
+            checks = [*_METRIC_TYPES.items(),
+                      *((n, k) for n, k in _OPTIONAL_METRIC_TYPES.items() if n in it)]
+            for name, kind in checks:
                 value = it.get(name)
                 ok = (isinstance(value, bool) if kind == "bool"
+                      else isinstance(value, str) if kind == "str"
                       else isinstance(value, int) and not isinstance(value, bool)
                       if kind == "int" else _is_number(value))
                 if not ok:

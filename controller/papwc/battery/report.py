@@ -17,9 +17,13 @@ from papwc.scenario import (
 # --- results ---------------------------------------------------------------------------------
 
 
-#: Metrics per iteration, as :func:`papwc.master.summarize` returns them.
+#: Metrics per iteration, as :func:`papwc.master.summarize` returns them, then the
+#: largest ratio of a pulse's displacement to its bound (:mod:`papwc.master.pulses`) and
+#: whether the iteration ended farther from the target than it started.
 METRICS = ("final_error_m", "pulses", "settle_time_s", "limit_cycle", "cycle_p2p_m",
-           "b_hat", "f_c_hat")
+           "b_hat", "f_c_hat", "outcome", "outcome_reason", "pulse_ratio", "ends_farther")
+#: A pulse whose ratio exceeds 1 by more than this (rounding of the replayed plant) ran away.
+RATIO_SLACK = 1e-9
 
 
 def _label_of(table: dict, i: int) -> str:
@@ -52,7 +56,8 @@ def result_rows(batteries: list[Battery], runs: list[RunSpec], records: dict) ->
                        "kind": table.get("kind", "") if isinstance(table, dict) else "",
                        "iteration": "", "last_iteration": True}
                 row.update({p: _varied_value(spec.data, p, i) for p in battery.varied})
-                row.update({"success": False, "status": "error", "message": rec["message"]})
+                row.update({"success": False, "false_settled": False, "status": "error",
+                            "message": rec["message"]})
                 rows.append(row)
             continue
         for i, c in enumerate(ctrls):
@@ -69,6 +74,8 @@ def result_rows(batteries: list[Battery], runs: list[RunSpec], records: dict) ->
                 ok = not it["error"]
                 row["success"] = bool(ok and abs(it["final_error_m"]) <= tol
                                       and not it["limit_cycle"])
+                row["false_settled"] = bool(ok and it.get("outcome") == "settled"
+                                            and not abs(it["final_error_m"]) <= tol)
                 row["status"] = "ok" if ok else "error"
                 row["message"] = it["error"] or c.get("warning", "")
                 rows.append(row)
@@ -115,7 +122,16 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
               "`success_tolerance`, else the controller's `tolerance`) and there is no limit "
               "cycle (pulses in both directions in the final quarter of the iteration). "
               "Errors and pulses are taken over the runs with status ok, in the last "
-              "iteration; settle times over those that settled.", ""]
+              "iteration; settle times over those that settled.", "",
+              "**Outcome** (last iteration): `settled` when the controller ended settled (|e| "
+              "within its tolerance at rest, as it measured), else `stopped` with its reason; "
+              "*false settled* counts the runs it called settled while the true |final error| "
+              "exceeds the success tolerance. **No runaway**, over every iteration: *pulse "
+              "ratio* is the largest ratio of a pulse's displacement (to the next rest) to the "
+              "larger of 1.5*|e| + one encoder count and the smallest pulse the controller "
+              "can make (one sample at its lowest height, on the run's plant in its state "
+              "then; `papwc.master.pulses`), > 1 a runaway pulse; *farther* counts the "
+              "maneuvers that ended farther from the target than they started.", ""]
     last = [r for r in rows if r["last_iteration"]]
     for battery in batteries:
         b_runs = [s for s in runs if s.battery == battery.name]
@@ -133,16 +149,22 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
         first = "| case " if battery.cases else ""
         lines += [first + "| controller | runs | errors | success | limit cycles | "
                   "abs(e) median (m) | abs(e) p95 (m) | abs(e) max (m) | pulses median | p95 | "
-                  "max | settled | settle median (s) | p95 | max |",
+                  "max | settled | settle median (s) | p95 | max | outcome settled | stopped "
+                  "(reasons) | false settled | pulse ratio max | runaway pulses | farther |",
                   ("|---" if battery.cases else "")
-                  + "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+                  + "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:"
+                  + "|---:|---|---:|---:|---:|---:|"]
         b_rows = [r for r in last if r["battery"] == battery.name]
-        groups = [(name, [r for r in b_rows if r["case"] == name]) for name, _ in battery.cases
-                  ] if battery.cases else [("", b_rows)]
-        for case, case_rows in groups:
+        b_all = [r for r in rows if r["battery"] == battery.name]
+        groups = [(name, [r for r in b_rows if r["case"] == name],
+                   [r for r in b_all if r["case"] == name]) for name, _ in battery.cases
+                  ] if battery.cases else [("", b_rows, b_all)]
+        for case, case_rows, all_rows in groups:
             for label in dict.fromkeys(r["controller"] for r in case_rows):
                 cr = [r for r in case_rows if r["controller"] == label]
-                lines.append((f"| {case} " if battery.cases else "") + _summary_cells(label, cr))
+                ar = [r for r in all_rows if r["controller"] == label]
+                lines.append((f"| {case} " if battery.cases else "") + _summary_cells(label, cr)
+                             + _safety_cells(cr, ar))
         lines += ["", f"Distribution of |final error|: `final_error_{battery.name}.png`.", ""]
         failed = [s for s in b_runs if (s.battery, s.run_id) in failed_keys]
         if failed:
@@ -171,6 +193,25 @@ def _summary_cells(label: str, cr: list[dict]) -> str:
             f"{_fmt(p[0], '.0f')} | {_fmt(p[1], '.1f')} | {_fmt(p[2], '.0f')} | "
             f"{len(settled)} | {_fmt(s[0], '.3f')} | {_fmt(s[1], '.3f')} | "
             f"{_fmt(s[2], '.3f')} |")
+
+
+def _safety_cells(cr: list[dict], ar: list[dict]) -> str:
+    """Outcome (last iteration, rows ``cr``) and no-runaway (every iteration, ``ar``) cells."""
+    import collections
+
+    ok = [r for r in cr if r["status"] == "ok"]
+    settled = sum(1 for r in ok if r.get("outcome") == "settled")
+    reasons = collections.Counter(r.get("outcome_reason") or "?" for r in ok
+                                  if r.get("outcome") != "settled")
+    why = ", ".join(f"{n} {reason}" for reason, n in reasons.most_common())
+    false = sum(1 for r in cr if r.get("false_settled"))
+    ratios = [float(r["pulse_ratio"]) for r in ar
+              if r["status"] == "ok" and r.get("pulse_ratio", "") != ""]
+    worst = max(ratios, default=math.nan)
+    runaway = sum(1 for q in ratios if q > 1.0 + RATIO_SLACK)
+    farther = sum(1 for r in ar if r["status"] == "ok" and r.get("ends_farther") is True)
+    return (f" {settled} | {sum(reasons.values())}" + (f" ({why})" if why else "")
+            + f" | {false} | {_fmt(worst, '.3g')} | {runaway} | {farther} |")
 
 
 def plot_final_errors(battery: Battery, rows: list[dict], path: Path) -> None:
@@ -220,7 +261,7 @@ def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], reco
     has_cases = any(b.cases for b in batteries)
     columns = (["battery", "run_id", "run_hash"] + (["case"] if has_cases else [])
                + ["controller", "kind", "iteration", "last_iteration"] + varied + list(METRICS)
-               + ["success", "status", "message"])
+               + ["success", "false_settled", "status", "message"])
     paths = [out / "results.csv", out / "runs.csv", out / "summary.md"]
     write_rows(paths[0], rows, columns)
     run_rows = []

@@ -84,10 +84,14 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
     dict
         The journal record: the task's ids and ``params``, ``status`` (``"ok"`` or
         ``"error"``), ``message``, and per controller its label, kind,
-        tolerance, error and the metrics of every iteration. Exceptions are
-        caught and recorded, never raised.
+        tolerance, error and the metrics of every iteration (those of
+        :func:`papwc.master.summarize`, the largest ratio of a pulse's
+        displacement to its bound, :func:`papwc.master.pulses.pulse_ratio`, and
+        whether the iteration ended farther from the target than it started).
+        Exceptions are caught and recorded, never raised.
     """
     from papwc.master import summarize
+    from papwc.master.pulses import pulse_ratio
     from papwc.runner import RunTimeout, run_scenario
 
     start = time.perf_counter()
@@ -103,9 +107,11 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         for result in results:
             settings = result.settings
             iterations = []
-            for trace in result.traces:
+            ratios = pulse_ratio(result.traces, scenario.plant, scenario.maneuver.T)
+            for trace, ratio in zip(result.traces, ratios, strict=True):
                 metrics = summarize(trace, settings.tolerance)
                 iterations.append({"iteration": trace.iteration, **metrics,
+                                   "pulse_ratio": ratio, "ends_farther": ends_farther(trace),
                                    "error": trace.error})
             entry = {"label": result.label, "kind": settings.kind,
                      "tolerance": settings.tolerance, "error": result.error,
@@ -127,6 +133,12 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         record["message"] = f"{type(exc).__name__}: {exc}"
     record["elapsed_s"] = time.perf_counter() - start
     return record
+
+
+def ends_farther(trace) -> bool:
+    """Whether the true position ends the iteration farther from the target than it started."""
+    x = trace.columns["x"]
+    return bool(x) and abs(trace.x_ref - x[-1]) > abs(trace.x_ref - x[0])
 
 
 def error_record(task: dict, message: str, transient: bool = False) -> dict:

@@ -4,19 +4,30 @@ PAPWC (Section 3) plans with the Coulomb-only model (4) and cannot move the mass
 less than one sample at the stiction force, Eq. (20). This controller
 
 * predicts a pulse's displacement with Eq. (3) (Eq. (2) at c = 0),
-  :func:`papwc.model.pulse.pulse_displacement`;
+  :func:`papwc.model.pulse.pulse_displacement`, corrected by what the nearest
+  earlier pulses of the same width moved against it (on a plant that is not
+  Eq. (3) -- Stribeck, ripple, a lag -- the model's error varies slowly with
+  the height, so the pulses near the one planned say how far it will go);
 * learns m, f_c and c from the measured displacements of its recent pulses by a
-  small regularized least-squares fit (Levenberg-Marquardt), and brackets the
-  breakaway force f_s between the highest amplitude that did not move the mass
-  and the lowest that did;
-* plans the fastest pulse: the fewest samples n whose required amplitude lies in
-  [f_floor, f_p_max], the amplitude solving Eq. (3) exactly for the error;
-* moves less than its smallest single pulse by two pulses: out by
-  ``|e| + d_back``, then back by ``d_back``;
-* stops pulsing once ``|e| <= tolerance``, once ``|e|`` is below what a move
-  can achieve (half the encoder resolution, or the model's relative misfit times
-  the move), and after ``max_pulses`` pulses in one maneuver at the latest, so
-  it cannot limit-cycle.
+  small regularized least-squares fit (Levenberg-Marquardt) weighted with the
+  measurement's resolution and noise, and brackets the breakaway force f_s
+  between the highest amplitude that did not move the mass and the lowest that
+  did;
+* plans inside a trust region: a single pulse moves by ``trust*|e|``, where
+  the trust (``trust0`` at first, at most 1) doubles after every pulse that
+  moved as predicted and shrinks after one that moved more, so a model fooled by
+  noise or by a plant unlike Eq. (3) plans short pulses near the breakaway force
+  instead of long ones;
+* plans the fastest such pulse: the fewest samples n whose required amplitude
+  lies in [f_floor, f_p_max], the amplitude solving the (corrected) model;
+* moves less than its smallest single pulse (one sample at f_floor, d_small)
+  by two pulses: first away from the target by d_small, then back by
+  ``|e| + d_small`` in one pulse; no pulse moves farther than the larger of
+  ``|e|`` and d_small;
+* stops once ``|e|`` is below what a move can achieve (half the encoder
+  resolution, or the model's relative error times the move), when its model
+  failed three pulses in a row by more than 100 %, and after ``max_pulses``
+  pulses in one maneuver at the latest, so it cannot limit-cycle.
 
 Standard library only (bundled into the controller FMU).
 """
@@ -25,14 +36,26 @@ from __future__ import annotations
 
 import math
 
-from ..model.pulse import b_coulomb, pulse_amplitude, pulse_displacement
-from .base import Controller, Mode
+from ..model.pulse import b_coulomb, bisect_increasing, pulse_displacement
+from .base import Z_DECIDE, Controller, Reason
 from .settings import ControllerSettings
 
 __all__ = ["ExactController", "PulseModelEstimator"]
 
-#: Relative size of the back pulse of a two-pulse move above the smallest single pulse.
-_MARGIN = 0.5
+#: Bounds of the correction of the model by the nearest earlier pulses (a factor).
+_CORRECTION_BOUNDS = (1e-3, 1e3)
+#: Where a pulse that did not move contradicts the f_s bracket, the new upper end of it
+#: relative to the new lower end.
+_F_S_EXPAND = 1.1
+#: Relative prediction error beyond which a single-sample pulse near breakaway (below the
+#: lowest height known to move and 1.2 times the highest known not to, or f_c) counts as
+#: not having moved (while the model otherwise predicts within it).
+_USEFUL = 0.2
+#: A single-sample pulse near breakaway that moved less than this fraction of the
+#: prediction counts as not having moved (the Stribeck evidence PAPWC uses too).
+_FAR_LESS = 0.25
+#: Consecutive pulses that the model misses by more than 100 % after which it is rejected.
+_REJECT_AFTER = 3
 #: Relative standard deviation of a measured displacement (model and rounding).
 _SIGMA_REL = 1e-6
 #: Smallest standard deviation of a measured displacement, m.
@@ -75,7 +98,9 @@ class PulseModelEstimator:
         sum_i ((d_model(f_i, n_i*T; theta) - d_i) / sigma_i)**2
             + sum_j ((theta_j - theta0_j) / sigma_prior_j)**2
 
-    with ``sigma_i = 1e-6*d_i + x_resolution`` (m), by Levenberg-Marquardt steps
+    with ``sigma_i = 1e-6*d_i + x_resolution + meas_sigma`` (m; ``meas_sigma``
+    the standard deviation of a displacement measured with a noisy encoder, set
+    by the controller), by Levenberg-Marquardt steps
     from the current estimate. The prior term keeps the directions that the
     pulses do not determine (e.g. all pulses of one shape) at the initial
     estimates, and every estimate stays inside fixed bounds.
@@ -119,6 +144,8 @@ class PulseModelEstimator:
         self.size = int(history)
         self.x_resolution = float(x_resolution)
         self.iterations = int(iterations)
+        #: Standard deviation of a measured displacement from the encoder noise, m.
+        self.meas_sigma = 0.0
         self.theta0 = (0.0, 0.0, self._clip(2, float(c_est) / self.c_scale))
         self.theta = list(self.theta0)
         #: Highest height known not to move the mass and lowest known to move it, N.
@@ -174,16 +201,18 @@ class PulseModelEstimator:
     def observe(self, n: int, f_p: float, d: float) -> None:
         """Take one pulse: n samples of height f_p (N, signed), displacement d (m, signed).
 
-        A pulse whose displacement along f_p is zero (or negative) did not break
-        the mass away: it raises ``f_s_lo``. A pulse that moved lowers
-        ``f_s_hi``, joins the history and the model is refitted. Non-finite or
-        meaningless observations are ignored.
+        A pulse whose displacement along f_p is zero or negative (at most
+        ``3*meas_sigma``, with a noisy encoder) did not break the mass away: it
+        raises ``f_s_lo`` (and, if that reaches ``f_s_hi``, the breakaway force
+        is sought anew up to ``1.1*f_s_lo``). A pulse that
+        moved lowers ``f_s_hi``, joins the history and the model is refitted.
+        Non-finite or meaningless observations are ignored.
         """
         if not (math.isfinite(f_p) and math.isfinite(d)) or f_p == 0.0 or n < 1:
             return
         f = min(abs(f_p), self.f_p_max)
         d_along = d if f_p > 0.0 else -d
-        if d_along > 0.0:
+        if d_along > Z_DECIDE * self.meas_sigma:
             if f <= 1.01 * self.f_c_est * math.exp(_THETA_BOUNDS[1][0]):
                 return  # far below any Coulomb friction the fit allows: not credible
             self.f_s_hi = min(self.f_s_hi, f)
@@ -194,8 +223,10 @@ class PulseModelEstimator:
         else:
             self.f_s_lo = max(self.f_s_lo, f)
             if self.f_s_lo >= self.f_s_hi:
-                self.f_s_hi = self.f_p_max
-                self.f_s_lo = min(self.f_s_lo, self.f_p_max * (1.0 - 1e-6))
+                # The breakaway force here is above where the mass moved before (it
+                # varies along the way): look for it just above the new lower bound.
+                self.f_s_hi = min(self.f_p_max, _F_S_EXPAND * self.f_s_lo)
+                self.f_s_lo = min(self.f_s_lo, self.f_s_hi * (1.0 - 1e-6))
 
     def _remember(self, n: int, f: float, d: float) -> None:
         """Append a pulse; when full, drop the oldest of the same width (else the oldest)."""
@@ -212,7 +243,7 @@ class PulseModelEstimator:
         m, f_c, c = self.params(theta)
         out = []
         for n, f, d in self.pulses:
-            sigma = _SIGMA_REL * d + self.x_resolution + _SIGMA_MIN
+            sigma = _SIGMA_REL * d + self.x_resolution + self.meas_sigma + _SIGMA_MIN
             try:
                 r = (pulse_displacement(f, n * self.T, m, f_c, c) - d) / sigma
             except (ValueError, OverflowError, ZeroDivisionError):
@@ -285,7 +316,8 @@ class PulseModelEstimator:
         m, f_c, c = self.params()
         total = 0.0
         for n, f, d in self.pulses:
-            err = abs(pulse_displacement(f, n * self.T, m, f_c, c) - d) - self.x_resolution
+            err = (abs(pulse_displacement(f, n * self.T, m, f_c, c) - d) - self.x_resolution
+                   - Z_DECIDE * self.meas_sigma)
             total += min(max(err, 0.0) / d, 1.0) ** 2
         value = math.sqrt(total / len(self.pulses))
         return max(value, _MISFIT_MIN) if math.isfinite(value) else 1.0
@@ -310,27 +342,30 @@ class PulseModelEstimator:
 class ExactController(Controller):
     """Pulse control on the exact model, Eq. (3), with m, f_c, c and f_s learned online.
 
-    Each pulse is planned for the measured error ``e``: the fewest samples n
-    for which Eq. (3) reaches ``|e|`` with a height in ``[f_floor, f_p_max]``,
-    the height solving Eq. (3) for ``|e|`` (see :func:`pulse_amplitude`).
-    ``f_floor`` is the lowest height known to move the mass, or, while the f_s
-    bracket is wider than ``f_s_tol`` (relative), the middle of the bracket, so
-    that pulses below the known height probe f_s. An error smaller than the
-    smallest single pulse (n = 1 at ``f_floor``) is reached with a two-pulse
-    move: out by ``|e| + d_back``, then back by ``d_back = 1.5 * d(1, f_floor)``.
+    Each pulse is planned for the measured error ``e`` (see the module): a
+    single pulse of ``trust*|e|`` when that is at least the smallest pulse
+    d_small = d(1 sample, ``f_floor``), else a two-pulse move (away by d_small,
+    then back) when the trust allows planning the whole way back, else the
+    smallest pulse toward the target when it brings the mass nearer. The
+    displacement of a planned pulse is the model's, Eq. (3), times the ratio
+    measured/model of the earlier pulses of the same width nearest in height
+    (interpolated between the nearest below and above). ``f_floor`` is the
+    lowest height known to move the mass, or, while the f_s bracket is wider
+    than ``f_s_tol`` (relative), the middle of the bracket, so that pulses
+    below the known height probe f_s.
 
     It reads the settings of kind ``exact`` (see
     :data:`papwc.model.settings.CONTROLLER_SETTINGS`): ``c_est`` (initial
     estimate of c, N.s/m), ``history`` (pulses kept for the fit), ``max_pulses``
     (pulses per maneuver after which it stops), ``x_resolution`` (resolution of
-    the measurement, m, weights the fit) and ``f_s_tol`` (relative width of the
-    f_s bracket below which no more probing is done).
+    the measurement, m, weights the fit), ``f_s_tol`` (relative width of the
+    f_s bracket below which no more probing is done) and ``trust0`` (the trust
+    region of a new controller).
     """
 
     kind = "exact"
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
-        self.max_pulses = int(settings.max_pulses)
         self.f_s_tol = float(settings.f_s_tol)
         self.estimator = PulseModelEstimator(
             settings.m_est,
@@ -341,35 +376,21 @@ class ExactController(Controller):
             history=int(settings.history),
             x_resolution=float(settings.x_resolution),
         )
-        self._stopped = False
-        self._stop_now = False
+        #: Relative errors of the last predictions (a priori, beyond the noise).
+        self.errors = [1.0, 1.0]
+        #: Consecutive pulses the model missed by more than 100 %.
+        self.misses = 0
+        #: Relative error of the last single-sample pulse planned right after another
+        #: (the way back of a two-pulse move), and whether the last pulse had one sample.
+        self.fine_error = 1.0
+        self._after_single = False
         super().__init__(settings, T)
+        self.trust_value = float(settings.trust0)
 
     def reset(self) -> None:
-        """Start a new maneuver from rest; the learned model and f_s bracket are kept."""
+        """Start a new maneuver from rest: the learned model is kept, misses forgotten."""
         super().reset()
-        self._stopped = False
-        self._stop_now = False
-
-    def update(self, t: float, x_meas: float, x_ref: float) -> float:
-        """Force to hold over the next sample, N (see :meth:`Controller.update`).
-
-        After ``max_pulses`` pulses in this maneuver (or for a non-finite error)
-        the controller stops: mode settled and ``u = 0`` until :meth:`reset`.
-        """
-        if self._stopped:
-            return 0.0
-        u = super().update(t, x_meas, x_ref)
-        if self._stop_now:
-            # plan_pulse refused: undo the pulse the base class started.
-            self._stop_now = False
-            self._stopped = True
-            self.pulses -= 1
-            self.mode = Mode.SETTLED
-            self._pulse_left = 0
-            self._f_pulse = 0.0
-            return 0.0
-        return u
+        self.misses = 0
 
     # -- planning ----------------------------------------------------------------------
     @property
@@ -383,22 +404,90 @@ class ExactController(Controller):
         # Eq. (3) gives no motion at or below f_c.
         return min(max(floor, est.f_c_hat * (1.0 + 1e-9)), self.settings.f_p_max)
 
+    @property
+    def f_low(self) -> float:
+        """Lowest height it plans with outside a probe of f_s, N: ``f_floor``."""
+        return self.f_floor
+
+    def correction(self, n: int, f: float) -> float:
+        """Ratio measured/model of the earlier pulses of width n nearest to height f (N).
+
+        Of the pulses in the history of the width nearest to n (n itself if
+        there are any; the longer of two as near), interpolated linearly in the
+        height between the nearest pulse below f and the nearest above (the most
+        recent of equal heights); the nearest one if all lie on one side; 1
+        without history. If the latest pulse has that width, the interpolation
+        is shifted to pass through it (it was made where the mass is now: on a
+        plant whose friction varies along the way it says most). Outside the
+        heights measured at width n the ratio is at least 1 (a pulse is never
+        planned longer on the strength of an extrapolation). Bounded to
+        ``_CORRECTION_BOUNDS``.
+        """
+        est = self.estimator
+        if not est.pulses:
+            return 1.0
+        # the pulses of the nearest width (the same, if there is one)
+        width = min((abs(n_i - n), -n_i) for n_i, _, _ in est.pulses)
+        n_near = -width[1]
+        same = [(f_i, d_i) for n_i, f_i, d_i in est.pulses if n_i == n_near]
+        m, f_c, c = est.params()
+        t = n_near * self.T
+
+        def ratio(point: tuple[float, float]) -> float:
+            model = pulse_displacement(point[0], t, m, f_c, c)
+            return point[1] / model if model > 0.0 else math.inf
+
+        def interpolated(f: float) -> float:
+            below = above = None
+            for point in same:
+                if point[0] <= f and (below is None or point[0] >= below[0]):
+                    below = point
+                if point[0] >= f and (above is None or point[0] <= above[0]):
+                    above = point
+            if below is None or above is None or above[0] == below[0]:
+                return ratio(below if above is None else above)
+            r0, r1 = ratio(below), ratio(above)
+            return r0 + (f - below[0]) / (above[0] - below[0]) * (r1 - r0)
+
+        r = interpolated(f)
+        latest = same[-1]
+        if est.pulses[-1][0] == n_near:
+            # the latest pulse, where the mass is now, says most: the curve goes through it
+            r += ratio(latest) - interpolated(latest[0])
+        heights = [point[0] for point in same]
+        if not min(heights) <= f <= max(heights) or n_near != n:
+            # beyond the pulses measured, only a correction to the safe side (less motion
+            # than the model predicts is not assumed)
+            r = max(r, 1.0)
+        lo, hi = _CORRECTION_BOUNDS
+        return min(max(r, lo), hi) if r == r else 1.0
+
+    def displacement(self, n: int, f: float) -> float:
+        """Displacement of a pulse of n samples at height f > 0 (N): the corrected model, m."""
+        m, f_c, c = self.estimator.params()
+        return pulse_displacement(f, n * self.T, m, f_c, c) * self.correction(n, f)
+
+    def predict(self, n: int, f_p: float) -> float:
+        """Displacement (m, along f_p) the corrected model predicts for the pulse."""
+        return self.displacement(n, abs(f_p)) if f_p != 0.0 else 0.0
+
     def plan_displacement(self, d: float, f_floor: float | None = None) -> tuple[int, float]:
         """Fastest pulse for a displacement d > 0 (m): n samples and height (N, > 0).
 
         The fewest samples n (<= n_max) for which ``d(n, f_p_max) >= d``; the
-        height solves Eq. (3) at that n. If even ``d(n, f_floor)`` exceeds d,
-        the pulse of n - 1 samples at f_p_max (which falls short) is taken, or,
-        for n = 1, the smallest pulse ``(1, f_floor)``.
+        height solves the corrected model at that n. If even ``d(n, f_floor)``
+        exceeds d, the pulse of n - 1 samples at f_p_max (which falls short) is
+        taken, or, for n = 1, the smallest pulse ``(1, f_floor)``.
         """
         f_max = self.settings.f_p_max
         f_lo = self.f_floor if f_floor is None else f_floor
-        m, f_c, c = self.estimator.params()
-        T = self.T
         n_cap = min(self.n_max, _N_SEARCH_MAX)
+        reach_cache: dict[int, float] = {}
 
         def reach(n: int) -> float:
-            return pulse_displacement(f_max, n * T, m, f_c, c)
+            if n not in reach_cache:
+                reach_cache[n] = self.displacement(n, f_max)
+            return reach_cache[n]
 
         if not d > 0.0 or not math.isfinite(d):
             return 1, f_lo
@@ -416,44 +505,129 @@ class ExactController(Controller):
             else:
                 hi = mid
         n = hi
-        if pulse_displacement(f_lo, n * T, m, f_c, c) > d:
+        if self.displacement(n, f_lo) > d:
             return (n - 1, f_max) if n > 1 else (1, f_lo)
-        return n, pulse_amplitude(d, n * T, m, f_c, c, f_lo, f_max)
+        return n, self._amplitude(d, n, f_lo, f_max)
+
+    def _amplitude(self, d: float, n: int, f_lo: float, f_hi: float) -> float:
+        """Height in [f_lo, f_hi] whose corrected displacement over n samples is closest to d."""
+
+        def moved(f: float) -> float:
+            return self.displacement(n, f)
+
+        if moved(f_lo) >= d:
+            return f_lo
+        if moved(f_hi) <= d:
+            return f_hi
+        lo, hi = bisect_increasing(moved, d, f_lo, f_hi)
+        return lo if d - moved(lo) <= moved(hi) - d else hi
 
     def plan_pulse(self, e: float) -> tuple[int, float]:
-        """Pulse for the error e (m): single pulse, or the out pulse of a two-pulse move.
+        """Pulse for the error e (m): toward the target, or away first for a two-pulse move.
 
-        Refuses (the controller stops, see :meth:`update`) when e is not finite,
-        when ``max_pulses`` pulses have been applied in this maneuver, when a
-        two-pulse move would not fit into them, or when ``|e|`` is below what a
-        move can achieve: half the measurement resolution, or the error the
-        model's relative misfit implies for the pulses of the move.
+        When ``trust*|e|`` is below the smallest pulse, a single sample below
+        ``f_floor`` (and above the highest height known not to move) that the
+        model says moves ``trust*|e|`` is tried first: it probes f_s.
+
+        Refuses (height 0; the controller stops, see :attr:`refusal`) when e is
+        not finite, when ``max_pulses`` pulses have been applied in this
+        maneuver, when the model missed three pulses in a row by more than
+        100 %, or when no pulse can bring the mass nearer: ``|e|`` below what a
+        move can achieve (half the measurement resolution, or the error the
+        model's relative error implies for the pulses of the move), or below
+        half the smallest pulse with too little trust for a two-pulse move.
         """
-        if not math.isfinite(e) or self.pulses >= self.max_pulses:
-            self._stop_now = True
+        if not math.isfinite(e):
+            self.refusal = Reason.INVALID_MEASUREMENT
+            return 1, 0.0
+        if self.pulses >= self.max_pulses:
+            self.refusal = Reason.PULSE_BUDGET
+            return 1, 0.0
+        if self.misses >= _REJECT_AFTER:
+            self.refusal = Reason.MODEL_REJECTED
             return 1, 0.0
         est = self.estimator
         f_lo = self.f_floor
         d = abs(e)
-        d_small = est.displacement(f_lo, 1)
-        two_pulse = d < d_small
-        if two_pulse:
-            d += (1.0 + _MARGIN) * d_small  # out now, back by d_back next
-        achievable = max(0.5 * est.x_resolution, est.rel_misfit * (2.0 * d - abs(e)))
-        if abs(e) <= achievable or (two_pulse and self.pulses + 2 > self.max_pulses):
-            self._stop_now = True
-            return 1, 0.0
-        n, f_p = self.plan_displacement(d, f_lo)
-        return n, math.copysign(f_p, e)
+        d_small = self.displacement(1, f_lo)
+        trust = self.trust()
+        rel = max(min(est.rel_misfit, max(self.errors)), 1e-9)
+        toward = math.copysign(1.0, e)
+        self.refusal = Reason.NO_MOVE_HELPS
+        if trust * d >= d_small:
+            if d <= max(0.5 * est.x_resolution, rel * d):
+                return 1, 0.0
+            n, f_p = self.plan_displacement(trust * d, f_lo)
+            return n, toward * f_p
+        if d_small <= 1.5 * d or abs(d_small - d) <= rel * d_small:
+            return 1, toward * f_lo  # the smallest pulse toward: it lands within d/2
+        two = d + d_small
+        # the way back is planned from where the way out ended: its error is what counts
+        rel_back = max(min(rel, self.fine_error), 1e-9)
+        if (trust * two >= d_small and d > max(0.5 * est.x_resolution, rel_back * two)
+                and d + d_small / trust <= abs(self._e0)):
+            if self.pulses + 2 > self.max_pulses:
+                self.refusal = Reason.PULSE_BUDGET
+                return 1, 0.0
+            return 1, -toward * f_lo  # away by d_small; back by d + d_small next
+        # A height below the lowest known to move may move the mass less: a probe of f_s
+        # toward the target, planned to move trust*|e| if it moves at all.
+        f_probe_lo = max(est.f_s_lo, est.f_c_hat) * (1.0 + 1e-9)
+        if f_probe_lo < f_lo:
+            if self.displacement(1, f_probe_lo) < trust * d:
+                return 1, toward * self._amplitude(trust * d, 1, f_probe_lo, f_lo)
+            # the smallest pulse that may move: just above the highest height that did not
+            f_probe = min(f_lo, max(est.f_s_lo * (1.0 + 2.0 * self.f_s_tol), f_probe_lo))
+            if f_probe < f_lo and self.displacement(1, f_probe) < 2.0 * d:
+                return 1, toward * f_probe  # (moving as predicted, it leaves |e| smaller)
+        if d_small < 2.0 * d and abs(d_small - d) < d:
+            return 1, toward * f_lo
+        return 1, 0.0
 
     def learn(self, n: int, f_p: float, d: float) -> None:
         """Take the measured displacement d (m) of the pulse (n samples, f_p N) into the model."""
-        self.estimator.observe(n, f_p, d)
+        pred = self._pred
+        d_along = d if f_p > 0.0 else -d
+        noise = Z_DECIDE * self._meas_sigma()
+        est = self.estimator
+        est.meas_sigma = self._meas_sigma()
+        if pred > 0.0 and math.isfinite(d_along) and d_along > max(noise, self._band):
+            # (a pulse that did not move probed f_s: it says nothing of the model)
+            r = max(abs(d_along - pred) - noise, 0.0) / pred
+            near = n == 1 and abs(f_p) < min(est.f_s_hi, 1.2 * max(est.f_s_lo, est.f_c_hat))
+            if near and (d_along < _FAR_LESS * pred
+                         or (r > _USEFUL and max(self.errors) <= _USEFUL)):
+                # A height near breakaway and below the lowest known to move, which moved
+                # far less than predicted, or unlike every prediction that held so far
+                # (Stribeck: friction kept up at low speed; pre-sliding): no use for
+                # planning. It counts as one that did not move.
+                est.observe(n, f_p, 0.0)
+                return
+            self.errors = [self.errors[-1], min(r, 1e3)]
+            self.misses = self.misses + 1 if r > 1.0 else 0
+            if n == 1 and self._after_single:
+                self.fine_error = min(r, 1e3)
+        self._after_single = n == 1
+        est.observe(n, f_p, d)
+
+    def precision(self, e: float) -> float:
+        """Relative error expected of the move for e (m): the last two prediction errors.
+
+        1 for a two-pulse move (its first pulse goes away by the smallest pulse,
+        whatever e is; the error counts when the way back is planned).
+        """
+        if abs(e) < self.displacement(1, self.f_floor) / self.trust():
+            return 1.0
+        return min(max(self.errors), 0.1)
+
+    def _meas_sigma(self) -> float:
+        """Standard deviation of a displacement measured as a difference of two rests, m."""
+        return math.sqrt(2.0 * self.sigma2 / (self._dwell + 1))
 
     def estimates(self) -> dict[str, float]:
         """``b_hat`` (Eq. (4) at f_p_max, m/s**2), ``f_c_hat``, ``m_hat``, ``c_hat``, f_s bracket.
 
-        Units: m/s**2, N, kg, N.s/m, N.
+        Units: m/s**2, N, kg, N.s/m, N; ``trust`` (1).
         """
         est = self.estimator
         m, f_c, c = est.params()
@@ -465,16 +639,21 @@ class ExactController(Controller):
             "c_hat": c,
             "f_s_lo": est.f_s_lo,
             "f_s_hi": est.f_s_hi,
+            "trust": self.trust_value,
         }
 
     def state(self) -> list[float]:
-        """Base state, the stop flags and the estimator's state (fixed length)."""
-        return (super().state() + [float(self._stopped), float(self._stop_now)]
+        """Base state, the prediction errors and the estimator's state (fixed length)."""
+        return (super().state() + [*self.errors, float(self.misses), self.estimator.meas_sigma,
+                                   self.fine_error, float(self._after_single)]
                 + self.estimator.state())
 
     def set_state(self, values: list[float]) -> None:
         """Restore a state returned by :meth:`state`."""
         n = len(super().state())
         super().set_state(values[:n])
-        self._stopped, self._stop_now = bool(values[n]), bool(values[n + 1])
-        self.estimator.set_state(values[n + 2:])
+        self.errors = [float(values[n]), float(values[n + 1])]
+        self.misses = int(values[n + 2])
+        self.estimator.meas_sigma = float(values[n + 3])
+        self.fine_error, self._after_single = float(values[n + 4]), bool(values[n + 5])
+        self.estimator.set_state(values[n + 6:])

@@ -15,6 +15,9 @@ FLOOR_RAISE = 0
 FLOOR_RAISE_LEARN = 1
 #: ``floor_mode``: the floor stays ``f_p_min``; the pulse is learned with d = 0.
 FLOOR_LEARN = 2
+#: With safeguards: a pulse that moved less than this fraction of its Eq. (4) prediction
+#: raises the floor as a pulse that did not move.
+FAR_LESS = 0.25
 
 
 def papwc_amplitude(f_c: float, f_p: float, t_p: float, T_x: float) -> float:
@@ -94,6 +97,13 @@ class PapwcController(Controller):
         return a1 * f_p * f_p - a2 * f_p
 
     def plan_pulse(self, e: float) -> tuple[int, float]:
+        """Eq. (6) at f_p_max for the width, Eq. (11) for the height, within the floor.
+
+        With safeguards, K_c is at most the trust region (a pulse is planned to
+        move at most ``trust*|e|`` by Eq. (4)), and a width whose height the
+        floor lifts so that Eq. (4) predicts more than that is cut by whole
+        samples.
+        """
         f_max = self.settings.f_p_max
         f_c = self.f_c_hat
         b = self.b_hat(f_max)
@@ -102,17 +112,41 @@ class PapwcController(Controller):
             # The estimates say f_p_max cannot move the mass: probe at full height.
             self.t_p_plan = self.T
             return 1, math.copysign(f_max, e)
-        t_p = math.sqrt(self.settings.K_c * abs(e) / b)  # Eq. (6)
+        k_c = self.settings.K_c
+        if self.guarded:
+            k_c = min(k_c, self.trust())
+        t_p = math.sqrt(k_c * abs(e) / b)  # Eq. (6)
         self.t_p_plan = min(t_p, self.n_max * self.T)
         n = self.width_samples(t_p)
-        T_x = n * self.T
-        f_p = f_max if t_p >= T_x else papwc_amplitude(f_c, f_max, t_p, T_x)
-        f_p = min(max(f_p, self.f_p_floor), f_max)
-        return n, math.copysign(f_p, e)
+        while True:
+            T_x = n * self.T
+            f_p = f_max if t_p >= T_x else papwc_amplitude(f_c, f_max, t_p, T_x)
+            f_p = min(max(f_p, self.f_p_floor), f_max)
+            if not (self.guarded and n > 1 and self.predict(n, f_p) > self.trust() * abs(e)):
+                return n, math.copysign(f_p, e)
+            n -= 1
+
+    def predict(self, n: int, f_p: float) -> float:
+        """Eq. (4) with Eq. (12): ``(A1*f_p**2 - A2*f_p)*(n*T)**2`` at |f_p| (>= 0), m."""
+        t = n * self.T
+        return max(self.b_hat(abs(f_p)), 0.0) * t * t
 
     def learn(self, n: int, f_p: float, d: float) -> None:
-        """Eq. (13)-(18) with the pulse's displacement ``d`` along its direction."""
+        """Eq. (13)-(18) with the pulse's displacement ``d`` along its direction.
+
+        With safeguards, a pulse that moved less than ``FAR_LESS`` of what
+        Eq. (4) predicts for it (a height barely above a breakaway force that
+        friction keeps up at low speed, as on a Stribeck curve) is the evidence
+        a pulse that did not move is: the floor rises above its height and the
+        estimator skips it.
+        """
         d_along = d if f_p > 0.0 else -d
+        if self.guarded and d_along > 0.0 and d_along < FAR_LESS * self.predict(n, f_p):
+            self.f_p_floor = min(
+                max(self.f_p_floor, abs(f_p) * (1.0 + self.settings.floor_raise)),
+                self.settings.f_p_max,
+            )
+            return
         if not d_along > 0.0:
             mode = int(self.settings.floor_mode)
             if mode in (FLOOR_RAISE, FLOOR_RAISE_LEARN):

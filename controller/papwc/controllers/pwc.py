@@ -44,10 +44,30 @@ class PwcController(Controller):
         self.t_p_plan = 0.0
 
     def plan_pulse(self, e: float) -> tuple[int, float]:
-        """Eq. (6): ``u_p = K_c*e/b_hat``, ``t_p = sqrt(|u_p|)``, height ``f_p_max*sgn(e)``."""
+        """Eq. (6): ``u_p = K_c*e/b_hat``, ``t_p = sqrt(|u_p|)``, height ``f_p_max*sgn(e)``.
+
+        With safeguards, a width rounded up to whole samples is cut by whole
+        samples (to one at least) while Eq. (4) predicts more than the trust
+        region, ``trust*|e|``.
+        """
         t_p = math.sqrt(self.settings.K_c * abs(e) / self.estimator.b_hat)
         self.t_p_plan = min(t_p, self.n_max * self.T)
-        return self.width_samples(t_p), math.copysign(self.settings.f_p_max, e)
+        n = self.width_samples(t_p)
+        if self.guarded:
+            limit = self.trust() * abs(e)
+            while n > 1 and self.predict(n, 1.0) > limit:
+                n -= 1
+        return n, math.copysign(self.settings.f_p_max, e)
+
+    @property
+    def f_low(self) -> float:
+        """PWC pulses at f_p_max only (N): its smallest pulse is d_min of Eq. (19)."""
+        return self.settings.f_p_max
+
+    def predict(self, n: int, f_p: float) -> float:
+        """Eq. (4)/(5): ``b_hat*(n*T)**2``, m."""
+        t = n * self.T
+        return self.estimator.b_hat * t * t
 
     def learn(self, n: int, f_p: float, d: float) -> None:
         """Eq. (7)-(9) with ``u_p = t_p**2 * sgn(f_p)``; a pulse that did not move is skipped.

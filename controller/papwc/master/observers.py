@@ -47,7 +47,7 @@ class Observer(Protocol):
 #: Trace columns read from the plant at each communication point (state at t_k).
 _STATE = ("x", "v", "x_meas")
 #: Trace columns read from the controller after its sample at t_k.
-_CONTROLLER = ("mode", "pulses", "b_hat", "f_c_hat")
+_CONTROLLER = ("mode", "pulses", "b_hat", "f_c_hat", "f_low", "outcome", "outcome_reason")
 
 
 class TraceObserver:
@@ -56,8 +56,8 @@ class TraceObserver:
     Row k holds the plant's ``x``, ``v``, ``x_meas`` at t_k (after the
     manipulators: what the controller saw), the force ``u`` the plant got over
     [t_k, t_k+1], ``e = x_ref - x`` and the controller's ``mode``, ``pulses``
-    and estimates after its sample at t_k. The last row is the state at the
-    end, with ``u`` NaN.
+    and estimates and outcome after its sample at t_k. The last row is the
+    state at the end, with ``u`` NaN.
 
     While running, it keeps a reference to each slave's list of values per
     sample (a slave makes a new list at every step); the columns are made from
@@ -69,7 +69,8 @@ class TraceObserver:
     ----------
     plant, controller : Slave
         The plant (variables x, v, x_meas) and the controller (u, mode,
-        pulses, b_hat, f_c_hat), connected ``controller.u -> plant.u``.
+        pulses, b_hat, f_c_hat, f_low, outcome, outcome_reason), connected
+        ``controller.u -> plant.u``.
     label : str
         Controller label of the trace.
     iteration : int

@@ -258,7 +258,8 @@ class PhysicsSlave(_WatchedAttributes):
 #: Variables of a Python controller slave: inputs, and the outputs every controller has.
 CONTROLLER_SLAVE_VARIABLES = {
     "x_meas": "input", "x_ref": "input", "u": "output", "mode": "output",
-    "pulses": "output", "b_hat": "output", "f_c_hat": "output",
+    "pulses": "output", "b_hat": "output", "f_c_hat": "output", "f_low": "output",
+    "outcome": "output", "outcome_reason": "output",
 }  # fmt: skip
 
 
@@ -267,8 +268,9 @@ class ControllerSlave(_WatchedAttributes):
 
     Like PulseController.fmu: ``do_step(t, h)`` samples the inputs ``x_meas``
     and ``x_ref`` (m) present at ``t`` and sets ``u`` (N), the force to hold
-    over the next sample; ``mode``, ``pulses`` and the controller's estimates
-    (``b_hat``, ``f_c_hat``, ...) are outputs. ``restart`` starts a new
+    over the next sample; ``mode``, ``pulses``, ``f_low``, ``outcome``,
+    ``outcome_reason`` and the controller's estimates (``b_hat``, ``f_c_hat``,
+    ...) are outputs. ``restart`` starts a new
     maneuver from rest with what the controller learned.
     """
 
@@ -292,7 +294,7 @@ class ControllerSlave(_WatchedAttributes):
     def _path(self, name: str) -> str:
         if name in ("x_meas", "x_ref", "u"):
             return name
-        if name in ("mode", "pulses"):
+        if name in ("mode", "pulses", "f_low", "outcome", "outcome_reason"):
             return f"controller.{name}"
         return f"estimates.{name}"
 

@@ -13,6 +13,9 @@ A trace holds named columns, one value per sample t_k = k*T (SI units):
 ``mode`` controller mode after its sample at t_k (papwc.controllers.Mode)
 ``pulses`` pulses started so far in the iteration
 ``b_hat``, ``f_c_hat`` the controller's estimates after its sample, m/s**2 and N
+``f_low`` the lowest pulse height it plans with after its sample, N
+``outcome``, ``outcome_reason`` the controller's outcome so far and why
+         (:data:`papwc.model.settings.OUTCOMES`, ``OUTCOME_REASONS``)
 ======== ======================================================================
 
 The last row is the state at the end of the iteration.
@@ -27,13 +30,15 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from papwc.controllers import Mode
+from papwc.model.settings import OUTCOME_REASONS, OUTCOMES
 from papwc.output import atomic_open, format_value
 
 __all__ = ["TRACE_COLUMNS", "Trace", "summarize"]
 
 #: Columns of a trace, in the order of its CSV file.
 TRACE_COLUMNS = (
-    "k", "t", "x", "v", "x_meas", "u", "e", "mode", "pulses", "b_hat", "f_c_hat",
+    "k", "t", "x", "v", "x_meas", "u", "e", "mode", "pulses", "b_hat", "f_c_hat", "f_low",
+    "outcome", "outcome_reason",
 )  # fmt: skip
 
 
@@ -112,13 +117,16 @@ def summarize(trace: Trace, tolerance: float, window: float = 0.25) -> dict[str,
         (start of the final stretch in mode "settled", NaN if the controller is
         still active at the end), ``limit_cycle`` (pulses in both directions
         within the final window), ``cycle_p2p_m`` (peak-to-peak of x in the
-        final window, m), ``b_hat``, ``f_c_hat``.
+        final window, m), ``b_hat``, ``f_c_hat``, ``outcome`` (``"settled"`` if
+        the controller ended settled, else ``"stopped"``) and ``outcome_reason``
+        (the controller's reason, ``"time_ended"`` if it was still active at the
+        end).
     """
     n = len(trace)
     if not n:
         return {"final_error_m": math.nan, "pulses": 0, "settle_time_s": math.nan,
                 "limit_cycle": False, "cycle_p2p_m": math.nan, "b_hat": math.nan,
-                "f_c_hat": math.nan}
+                "f_c_hat": math.nan, "outcome": "stopped", "outcome_reason": "time_ended"}
     cols = trace.columns
     mode, t, x, u = cols["mode"], cols["t"], cols["x"], cols["u"]
     settle = math.nan
@@ -139,4 +147,23 @@ def summarize(trace: Trace, tolerance: float, window: float = 0.25) -> dict[str,
         "cycle_p2p_m": max(xs) - min(xs),
         "b_hat": cols["b_hat"][-1],
         "f_c_hat": cols["f_c_hat"][-1],
+        **outcome_of(cols["outcome"][-1], cols["outcome_reason"][-1]),
     }
+
+
+def outcome_of(outcome: int, reason: int) -> dict[str, str]:
+    """``outcome`` and ``outcome_reason`` words of a maneuver from the controller's codes.
+
+    A controller still active (coarse, pulse, wait) when the maneuver ended has
+    stopped for the reason ``time_ended``; unknown codes read as that too.
+    """
+    try:
+        word = OUTCOMES[int(outcome)]
+        why = OUTCOME_REASONS[int(reason)]
+    except (ValueError, IndexError, TypeError, OverflowError):
+        word, why = "active", ""
+    if word == "settled":
+        return {"outcome": "settled", "outcome_reason": why or "within_tolerance"}
+    if word == "stopped" and why:
+        return {"outcome": "stopped", "outcome_reason": why}
+    return {"outcome": "stopped", "outcome_reason": "time_ended"}

@@ -23,6 +23,8 @@ __all__ = [
     "FMU_DEFAULT_SENTINEL",
     "KIND_CODE",
     "KIND_CODES",
+    "OUTCOMES",
+    "OUTCOME_REASONS",
     "PULSE_CONTROLLER_VARIABLES",
     "REFERENCE_OFFSET",
     "SAMPLE_PERIOD",
@@ -86,20 +88,38 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "N/m", None, min=0.0, min_open=True, max=1e15, optional=True),
     Variable("k_d", "Derivative gain of the coarse feedback; default 2*0.7*(10 rad/s)*m_est",
              "N.s/m", None, min=0.0, max=1e15, optional=True),
-    Variable("rest_samples", "Samples with unchanged measured position that count as at "
-             "rest", "", 1, type="Integer", min=1, max=1_000_000),
-    Variable("rest_band", "Largest change of the measured position that still counts as "
-             "unchanged (rest detection)", "m", 0.0, min=0.0, max=1.0, nominal=1e-6),
+    Variable("rest_samples", "Sample intervals over which the measured position must stay "
+             "within the rest band to count as at rest (the dwell; with rest_auto, at least "
+             "this)", "", 1, type="Integer", min=1, max=1_000_000),
+    Variable("rest_band", "Largest spread of the measured position over the dwell that still "
+             "counts as at rest (with rest_auto, at least this)", "m", 0.0, min=0.0, max=1.0,
+             nominal=1e-6),
     Variable("c_est", "Initial estimate of the viscous damping", "N.s/m", 0.0, min=0.0,
              max=1e9, kinds=("exact",), nominal=100.0),
     Variable("history", "Number of pulses kept for the fit", "", 16, type="Integer", min=1,
              max=1000, kinds=("exact",)),
-    Variable("max_pulses", "Pulses per maneuver after which the controller stops", "", 20,
-             type="Integer", min=1, max=1_000_000, kinds=("exact",)),
+    Variable("max_pulses", "Pulses per maneuver after which the controller stops (PWC and "
+             "PAPWC: with safeguards)", "", 20, type="Integer", min=1, max=1_000_000),
     Variable("x_resolution", "Resolution of the position measurement; weights the fit", "m",
              0.0, min=0.0, max=1.0, kinds=("exact",), nominal=1e-6),
     Variable("f_s_tol", "Relative width of the f_s bracket below which no more probing is "
              "done", "1", 0.02, min=0.0, max=1.0, min_open=True, kinds=("exact",)),
+    Variable("safeguards", "Safeguards around the control law: no planned pulse beyond the "
+             "trust region (a multiple of |e| that shrinks when pulses move more than "
+             "predicted), none that would end the maneuver farther from the target than it "
+             "started, at most max_pulses per maneuver, PAPWC's floor raised by a pulse that "
+             "moved far less than predicted; false runs the law as published (the exact "
+             "controller keeps its own)", "", True, type="Boolean"),
+    Variable("rest_auto", "Rest detection grows its band beyond rest_band and its dwell beyond "
+             "rest_samples from the measured encoder noise (estimated from samples at rest) "
+             "and the period of f_mode; with an ideal, noiseless encoder and f_mode = 0 they "
+             "stay rest_band and rest_samples", "", True, type="Boolean"),
+    Variable("f_mode", "Frequency of the machine's slowest mode (0 = rigid or unknown): rest "
+             "lasts at least one period of it, and pulses are shaped not to excite it", "Hz",
+             0.0, min=0.0, max=1e6, nominal=10.0),
+    Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
+             "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
+             "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True, kinds=("exact",)),
 )
 
 
@@ -193,6 +213,25 @@ def kind_from_code(kind: str, kind_code: int, kind_set: bool) -> tuple[str, str 
     return named, None
 
 
+#: Outcome of a maneuver by code (the controller FMU's ``outcome`` output): ``active`` while
+#: the controller still works (coarse, pulse, wait), ``settled`` once |e| is within the
+#: tolerance at rest, ``stopped`` when it gave up (``outcome_reason`` says why).
+OUTCOMES: tuple[str, ...] = ("active", "settled", "stopped")
+
+#: Reasons of an outcome by code (the controller FMU's ``outcome_reason`` output).
+#: ``time_ended`` is never set by a controller: a maneuver whose time ended while its
+#: controller was still active is ``stopped`` for that reason in the results.
+OUTCOME_REASONS: tuple[str, ...] = (
+    "",  # 0: active
+    "within_tolerance",  # 1: settled
+    "no_move_helps",  # 2: no pulse it can make would bring the mass nearer to the target
+    "pulse_budget",  # 3: max_pulses pulses in this maneuver
+    "model_rejected",  # 4: its model predicts so badly that no pulse can be trusted
+    "time_ended",  # 5: the maneuver ended while the controller was still active
+    "invalid_measurement",  # 6: the measured error is not finite
+    "cannot_move",  # 7: the largest pulse did not move the mass
+)
+
 #: Inputs of PulseController.fmu, read at the start of each step.
 CONTROLLER_INPUTS: tuple[Variable, ...] = (
     Variable("x_meas", "Measured position, read at the start of each step", "m", 0.0,
@@ -220,6 +259,17 @@ CONTROLLER_OUTPUTS: tuple[Variable, ...] = (
     Variable("mode", "Controller mode after the last step: 0 coarse, 1 pulse, 2 wait, "
              "3 settled (also before the first step: the mass is taken to be at rest and no "
              "force is applied)", "", 3, causality="output", type="Integer", initial="exact"),
+    Variable("f_low", "Lowest pulse height the controller plans with now (PWC: f_p_max; "
+             "PAPWC: its amplitude floor; exact: f_floor): one sample at it is the smallest "
+             "pulse it can make", "N", 0.0, causality="output", initial="calculated",
+             variability="discrete"),
+    Variable("outcome", "Outcome of the maneuver so far: " + ", ".join(
+             f"{n} {name}" for n, name in enumerate(OUTCOMES)) + " (settled only with |e| "
+             "within the tolerance at rest; stopped: it gave up, see outcome_reason)", "", 0,
+             causality="output", type="Integer", initial="exact"),
+    Variable("outcome_reason", "Why: " + ", ".join(
+             f"{n} {name or 'none (active)'}" for n, name in enumerate(OUTCOME_REASONS)), "",
+             0, causality="output", type="Integer", initial="exact"),
 )
 
 

@@ -15,6 +15,7 @@ UNIT_DEFINITIONS: dict[str, dict[str, int]] = {
     "m": {"m": 1},
     "s": {"s": 1},
     "s4": {"s": 4},
+    "Hz": {"s": -1},
     "rad": {"rad": 1},
     "m/s": {"m": 1, "s": -1},
     "m/s2": {"m": 1, "s": -2},

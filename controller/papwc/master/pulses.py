@@ -1,0 +1,192 @@
+"""Pulses read off a trace, and the bound no pulse may exceed (no runaway).
+
+A pulse starts at the sample where the controller's ``pulses`` count rises. Its
+displacement is the change of the true position ``x`` from that sample to the
+next rest the controller acted on: the start of the next pulse, the first
+sample of coarse feedback after it, or else the end of the iteration. The error
+before it is ``x_ref - x`` at its start.
+
+A pulse *runs away* when its displacement exceeds both ``1.5*|e| + q`` (``q``
+the encoder's count) and the smallest pulse the controller can make: one sample
+at its lowest amplitude -- the controller's output ``f_low`` when the pulse
+starts (PWC: f_p_max, so d_min of Eq. (19); PAPWC: its amplitude floor; exact:
+its ``f_floor``), or the pulse's own height if lower -- displaced on the plant
+of the run itself, in the state the plant was in at the pulse's start (the
+model layer's :class:`papwc.model.dynamics.Plant` replayed with the trace's
+forces), over the same samples, so that a deviation which makes every pulse
+longer (or a drive still ringing from the last one) does not count against the
+controller. The height is at least the breakaway force in effect then (random
+stiction draws it anew at every stop; ripple makes it depend on x).
+
+:func:`pulse_ratio` gives, per iteration, the largest ratio of a pulse's
+displacement to that bound (> 1: a runaway pulse).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from papwc.controllers import Mode
+from papwc.master.trace import Trace
+from papwc.model.plant import PLANT_DEFAULTS
+
+__all__ = ["Pulse", "PulseBound", "pulse_ratio", "pulses_of"]
+
+#: Factor on |e| of the bound.
+RUNAWAY_FACTOR = 1.5
+#: Longest coast simulated for the smallest pulse, s.
+_COAST_MAX = 2.0
+
+
+@dataclass(frozen=True)
+class Pulse:
+    """One pulse of a trace (SI units)."""
+
+    #: Row of the trace where it starts.
+    k: int
+    #: Signed largest force of the pulse, N.
+    amplitude: float
+    #: Error x_ref - x at its start, m.
+    e: float
+    #: Displacement to the next rest, m.
+    d: float
+
+
+def pulses_of(trace: Trace) -> list[Pulse]:
+    """The pulses of one iteration, in order."""
+    cols = trace.columns
+    n = len(trace)
+    if n == 0:
+        return []
+    count, mode, x, u = cols["pulses"], cols["mode"], cols["x"], cols["u"]
+    starts = [k for k in range(n) if count[k] > (count[k - 1] if k else 0)]
+    out = []
+    for i, k0 in enumerate(starts):
+        k1 = starts[i + 1] if i + 1 < len(starts) else n - 1
+        end = k1
+        for k in range(k0 + 1, k1):
+            if mode[k] == Mode.COARSE:
+                end = k
+                break
+        forces = [f for f in u[k0:max(end, k0 + 1)] if f == f and f != 0.0]
+        amp = max(forces, key=abs) if forces else 0.0
+        out.append(Pulse(k0, amp, trace.x_ref - x[k0], x[end] - x[k0]))
+    return out
+
+
+class PulseBound:
+    """The smallest pulse a controller can make on the plant of a run, by simulation.
+
+    The plant of the run (:class:`papwc.model.dynamics.Plant` with the run's
+    parameters) is replayed with the forces of the trace, so that at every
+    pulse its full state is known (a flexible drive still ringing, the
+    breakaway force drawn, the lag's force); from that state the smallest pulse
+    -- one sample at the lowest amplitude -- is simulated over the same samples
+    as the pulse's span.
+
+    Parameters
+    ----------
+    plant : mapping
+        The run's plant parameters (scenario ``[plant]`` names; missing ones default).
+    T : float
+        Sample period, s.
+    """
+
+    def __init__(self, plant: Mapping[str, Any], T: float) -> None:
+        p = {**PLANT_DEFAULTS, **plant}
+        self.q = float(p["x_resolution"])
+        self.T = float(T)
+        self.params = dict(p)
+
+    def _plant(self):
+        from papwc.model.dynamics import Plant
+
+        return Plant(self.params)
+
+    def ratios(self, traces: Sequence[Trace]) -> list[float]:
+        """Largest ratio of a pulse's displacement to its bound, per trace (0 without pulses).
+
+        ``traces`` are iterations of one controller, each from the plant's
+        initial state.
+        """
+        out = []
+        for trace in traces:
+            worst = 0.0
+            replay = None
+            pulses = pulses_of(trace)
+            lows = trace.columns.get("f_low")
+            for i, p in enumerate(pulses):
+                d = abs(p.d)
+                height = abs(p.amplitude)
+                f_low = height if lows is None else min(abs(lows[p.k]), height)
+                cheap = RUNAWAY_FACTOR * abs(p.e) + self.q
+                ratio = d / cheap if cheap > 0.0 else (math.inf if d > 0.0 else 0.0)
+                if ratio > 1.0 and ratio > worst and f_low > 0.0:
+                    if replay is None:
+                        replay = _Replay(self._plant, trace)
+                    end = _span_end(trace, pulses, i)
+                    small = replay.smallest(p.k, end, math.copysign(f_low, p.amplitude))
+                    ratio = d / max(cheap, small)
+                worst = max(worst, ratio)
+            out.append(worst)
+        return out
+
+
+def _span_end(trace: Trace, pulses: list[Pulse], i: int) -> int:
+    """Row where pulse i's displacement is read (see :func:`pulses_of`)."""
+    k0 = pulses[i].k
+    n = len(trace)
+    k1 = pulses[i + 1].k if i + 1 < len(pulses) else n - 1
+    mode = trace.columns["mode"]
+    for k in range(k0 + 1, k1):
+        if mode[k] == Mode.COARSE:
+            return k
+    return k1
+
+
+class _Replay:
+    """The run's plant driven with a trace's forces, state kept per row on demand."""
+
+    def __init__(self, make_plant, trace: Trace) -> None:
+        self.make_plant = make_plant
+        self.plant = make_plant()
+        self.u = trace.columns["u"]
+        self.T = trace.T
+        self.k = 0
+
+    def state_at(self, k: int) -> dict:
+        """The plant's state at row k (rows are replayed forward only)."""
+        plant = self.plant
+        while self.k < k:
+            u = self.u[self.k]
+            if plant.step(u if u == u else 0.0, self.T) is not None:
+                raise ValueError("the replay of the trace was refused by the plant")
+            self.k += 1
+        return plant.state()
+
+    def smallest(self, k0: int, end: int, f: float) -> float:
+        """|Displacement| of one sample at f (N) from row k0's state, read at row ``end``.
+
+        The height is at least the breakaway force in effect there (random
+        stiction draws it anew at every stop; ripple makes it depend on x).
+        """
+        state = self.state_at(k0)
+        probe = self.make_plant()
+        probe.set_state(state)
+        x0 = probe.x
+        T = self.T
+        f_move = math.copysign(max(abs(f), probe._breakaway(x0) * (1.0 + 1e-9)), f)
+        if probe.step(f_move, T) is not None:
+            return math.inf
+        for _ in range(max(end - k0 - 1, 0)):
+            if probe.step(0.0, T) is not None:
+                return math.inf
+        return abs(probe.x - x0)
+
+
+def pulse_ratio(traces: Sequence[Trace], plant: Mapping[str, Any], T: float) -> list[float]:
+    """Per trace, the largest ratio of a pulse's displacement to its bound (see the module)."""
+    return PulseBound(plant, T).ratios(traces)

@@ -1,0 +1,392 @@
+"""The safeguards every pulse controller has around its law, each on the situation that
+needs it: rest detection on a noisy encoder, the hand-over of a creeping coarse loop, a fit
+fooled by noise, a ringing table, a Stribeck crawl; the trust region under any sequence of
+measurements; honest outcomes; the pulse bound of :mod:`papwc.master.pulses`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from papwc.controllers import Mode, make_controller
+from papwc.controllers.base import (
+    BAND_SIGMAS,
+    MODE_PERIODS,
+    NOISE_DWELL,
+    X_LIMIT,
+    Outcome,
+    Reason,
+)
+from papwc.controllers.settings import ControllerSettings
+from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration, summarize
+from papwc.master.pulses import PulseBound, pulse_ratio, pulses_of
+from papwc.master.slave import ControllerSlave
+from papwc.model.settings import CONTROLLER_OUTPUTS, OUTCOME_REASONS, OUTCOMES
+
+TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+T = 0.01
+KINDS = ("pwc", "papwc", "exact")
+
+
+def _settings(kind: str, **kw) -> ControllerSettings:
+    base = {"kind": kind, "f_p_max": 300.0, "t_p_max": 0.03, "m_est": 150.0, "f_c_est": 80.0,
+            "K_c": 0.8 if kind == "papwc" else 0.5,
+            "tolerance": {"pwc": 0.0, "papwc": 2e-5, "exact": 1e-7}[kind]}
+    if kind == "exact":
+        base["t_p_max"] = math.inf
+    return ControllerSettings(**{**base, **kw})
+
+
+def _run(plant: dict, settings: ControllerSettings, **maneuver):
+    slave = PhysicsSlave()
+    slave.set_start_values(plant)
+    man = Maneuver(**{"iterations": 3, **maneuver})
+    result = run_controller(slave, settings, man)
+    assert not result.error
+    return result
+
+
+# -- rest detection on real signals ----------------------------------------------------------
+@pytest.mark.parametrize("kind", KINDS)
+def test_an_ideal_encoder_keeps_todays_rest_detection(kind):
+    """With an ideal, noiseless encoder and f_mode = 0 the noise-derived band and dwell stay
+    rest_band and rest_samples: rest_auto changes no sample of the paper plant's runs."""
+    runs = [_run(TABLE_1, _settings(kind, rest_auto=auto)) for auto in (True, False)]
+    for a, b in zip(runs[0].traces, runs[1].traces, strict=True):
+        assert a.columns == b.columns
+
+
+def test_a_noisy_rest_is_detected_and_its_noise_measured():
+    """0.2 um of noise on a 0.1 um encoder: equal readings in a row are rare, so rest was
+    found by chance before; now the controller measures the noise at rest (to 10 %), widens
+    its band to 6 sigma over 5 samples and settles within its tolerance."""
+    noise, count = 2e-7, 1e-7
+    plant = {**TABLE_1, "noise_std": noise, "x_resolution": count, "seed": 3}
+    settings = _settings("papwc")
+    ctl = make_controller(settings, T)
+    slave = PhysicsSlave()
+    slave.set_start_values(plant)
+    from papwc.master.run import run_closed_loop
+
+    result = run_closed_loop(slave, ControllerSlave(ctl), Maneuver(iterations=3), settings)
+    expected = math.sqrt(noise**2 + count**2 / 12.0)  # the readings' scatter at rest
+    # measured: 2.13e-7 against 2.02e-7 (seed 3)
+    assert math.sqrt(ctl.sigma2) == pytest.approx(expected, rel=0.1)
+    assert ctl._band == pytest.approx(BAND_SIGMAS * math.sqrt(ctl.sigma2))
+    assert ctl._dwell == NOISE_DWELL
+    for tr in result.traces:
+        s = summarize(tr, settings.tolerance)
+        assert abs(s["final_error_m"]) <= settings.tolerance and s["outcome"] == "settled"
+
+
+def test_averaging_at_rest_resolves_an_error_below_the_noise():
+    """The exact controller on 0.2 um noise (0.1 um counts, seeds 1-3): every run ends within
+    one count (the controller acts on the mean of the readings since the rest began), and
+    whenever it says settled the true error is within its tolerance."""
+    for seed in (1, 2, 3):
+        plant = {**TABLE_1, "noise_std": 2e-7, "x_resolution": 1e-7, "seed": seed}
+        result = _run(plant, _settings("exact", x_resolution=1e-7))
+        s = summarize(result.traces[-1], 1e-7)
+        assert abs(s["final_error_m"]) <= 1e-7, (seed, s)
+        for tr in result.traces:
+            s = summarize(tr, 1e-7)
+            if s["outcome"] == "settled":
+                assert abs(s["final_error_m"]) <= 1e-7, (seed, tr.iteration, s)
+
+
+def test_a_creeping_hand_over_ends():
+    """Table 1 plant with c = 900 N.s/m and x_ref = 5 cm, beyond e_band: the overdamped PD
+    with Coulomb feed-forward creeps and never read still, so pulse mode never started
+    (1.3 mm off after 3 s, 0 pulses, measured before). Released inside e_band once slow,
+    the mass stops by friction and the pulses take over."""
+    plant = {**TABLE_1, "c": 900.0}
+    for kind in ("papwc", "exact"):
+        settings = _settings(kind)
+        result = _run(plant, settings, x_ref=0.05, duration=3.0, iterations=1)
+        tr = result.traces[0]
+        s = summarize(tr, settings.tolerance)
+        modes = tr.column("mode")
+        first_pulse = modes.index(Mode.PULSE)
+        assert 0 < first_pulse < 100  # measured: sample 42
+        assert s["pulses"] > 0 and s["outcome"] == "settled"
+        assert abs(s["final_error_m"]) <= settings.tolerance
+
+
+def test_the_coarse_force_is_released_inside_e_band_when_coasting_stops_there():
+    ctl = make_controller(_settings("papwc", e_band=1e-3), T)
+    ctl.update(0.0, 0.0, 0.1)  # far away: coarse
+    assert ctl.mode == Mode.COARSE
+    ctl.update(0.01, 0.1 - 2e-3, 0.1)  # outside e_band: coarse feedback
+    u = ctl.update(0.02, 0.1 - 5e-4, 0.1)  # inside, at 0.15 m/s: would coast 21 mm
+    assert ctl._released is False and u != 0.0
+    # inside e_band, 1 mm/s: coasting stops it after m*v**2/(2 f_c_est) = 0.94 um
+    u = ctl.update(0.03, 0.1 - 5e-4 + 1e-5, 0.1)
+    assert ctl._released and u == 0.0 and ctl.mode == Mode.COARSE
+    assert ctl.update(0.04, 0.1 - 5e-4 + 1.1e-5, 0.1) == 0.0  # still coasting: no force
+
+
+# -- the exact controller: a fooled fit --------------------------------------------------------
+def test_a_fit_fooled_by_noise_cannot_plan_a_runaway_pulse():
+    """Pulses of a few counts measured through noise drag the fit: planned pulses still
+    predict at most trust*|e| (or are the smallest pulse), so no pulse runs away."""
+    ctl = make_controller(_settings("exact", x_resolution=1e-7), T)
+    for f, d in [(119.6, 1e-7), (120.1, 3e-7), (119.6, -3e-7), (125.0, 2e-7), (121.0, 1e-7)]:
+        ctl.learn(1, f, d)
+    for e in (1e-2, 1e-3, 5e-5, 3e-6):
+        n, f_p = ctl.plan_pulse(e)
+        if f_p != 0.0:
+            pred = ctl.predict(n, f_p)
+            assert pred <= ctl.trust() * e * (1 + 1e-9) or (n == 1 and abs(f_p) <= ctl.f_low)
+
+
+def test_noise_weights_the_fit_and_marks_what_did_not_move():
+    ctl = make_controller(_settings("exact", x_resolution=1e-7), T)
+    ctl.sigma2 = (2e-7) ** 2
+    ctl._update_rest_test()
+    ctl._pred = 1e-5
+    ctl.learn(1, 125.0, 2e-7)  # within 3 sigma of no motion: did not move
+    assert ctl.estimator.f_s_lo == 125.0 and ctl.estimator.pulses == []
+    assert ctl.estimator.meas_sigma == pytest.approx(math.sqrt(2.0 * 4e-14 / (NOISE_DWELL + 1)))
+
+
+# -- a ringing table -------------------------------------------------------------------------
+FLEXIBLE = {"m": 100.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0, "m_d": 50.0, "k_t": 7.896e5,
+            "c_t": 251.3}
+
+
+def test_a_known_mode_lengthens_the_dwell_and_caps_the_trust():
+    ctl = make_controller(_settings("exact", f_mode=20.0), T)
+    assert ctl._dwell == math.ceil(MODE_PERIODS / (20.0 * T))  # periods of 20 Hz, whole samples
+    ctl.trust_value = 1.0
+    assert ctl.trust() == 0.5
+    rigid = make_controller(_settings("exact"), T)
+    assert rigid._dwell == 1
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_a_ringing_table_gets_no_runaway_pulse(kind):
+    """The 20 Hz mode of scenarios/realism.toml, told to the controllers: no pulse moves
+    more than its bound, no maneuver ends farther than it started."""
+    for x_ref in (1e-2, 1e-3, 5e-5):
+        result = _run(FLEXIBLE, _settings(kind, f_mode=20.0), x_ref=x_ref)
+        ratios = pulse_ratio(result.traces, FLEXIBLE, T)
+        assert max(ratios) <= 1.0 + 1e-9, (x_ref, ratios)
+        for tr in result.traces:
+            x = tr.column("x")
+            assert abs(tr.x_ref - x[-1]) <= abs(tr.x_ref - x[0])
+
+
+# -- PAPWC: a Stribeck crawl -----------------------------------------------------------------
+def test_papwc_does_not_crawl_on_a_stribeck_curve():
+    """v_s = 1 mm/s: pulses just above f_s move 0.1-0.7 um where Eq. (4) predicts 13 um.
+    Without safeguards PAPWC averages them in and crawls (65-67 pulses on 1 mm); with them
+    such a pulse raises the floor as one that did not move: at most 20 pulses, within
+    tolerance in the third iteration."""
+    plant = {**TABLE_1, "v_s": 1e-3}
+    crawl = _run(plant, _settings("papwc", safeguards=False), x_ref=1e-3)
+    assert max(summarize(tr, 2e-5)["pulses"] for tr in crawl.traces) > 20
+    result = _run(plant, _settings("papwc"), x_ref=1e-3)
+    for tr in result.traces:
+        assert summarize(tr, 2e-5)["pulses"] <= 20
+    assert abs(summarize(result.traces[-1], 2e-5)["final_error_m"]) <= 2e-5
+
+
+def test_a_pulse_that_moved_far_less_than_predicted_raises_the_floor():
+    ctl = make_controller(_settings("papwc"), T)
+    a = list(ctl.estimator.a)
+    pred = ctl.predict(1, 140.0)
+    ctl.learn(1, 140.0, 0.1 * pred)
+    assert ctl.estimator.a == a and ctl.f_p_floor == pytest.approx(140.0 * 1.05)
+    unguarded = make_controller(_settings("papwc", safeguards=False), T)
+    unguarded.learn(1, 140.0, 0.1 * pred)
+    assert unguarded.estimator.a != a  # the paper's law averages it in
+
+
+# -- the trust region under any measurements -------------------------------------------------
+readings = st.lists(st.one_of(
+    st.floats(-0.05, 0.05), st.floats(-1e-5, 1e-5), st.just(0.0),
+    st.floats(allow_nan=True, allow_infinity=True)), min_size=1, max_size=120)
+
+
+@settings(max_examples=120, deadline=None)
+@given(kind=st.sampled_from(KINDS), xs=readings, x_ref=st.sampled_from([0.01, 1e-3, 5e-5]),
+       noise=st.booleans())
+def test_no_measurements_make_a_pulse_beyond_the_trust_region_or_nan(kind, xs, x_ref, noise):
+    ctl = make_controller(_settings(kind), T)
+    if noise:
+        ctl.sigma2 = 4e-14
+        ctl._update_rest_test()
+    plan = ctl.plan_pulse
+    planned = []
+
+    def checked(e):
+        n, f_p = plan(e)
+        assert 1 <= n <= ctl.n_max and math.isfinite(f_p) and abs(f_p) <= 300.0
+        if f_p != 0.0:
+            pred = ctl.predict(n, f_p)
+            assert math.isfinite(pred) and pred >= 0.0
+            smallest = n == 1 and abs(f_p) <= ctl.f_low * (1 + 1e-12)
+            assert pred <= ctl.trust() * abs(e) * (1 + 1e-9) or smallest, (e, n, f_p, pred)
+        planned.append((n, f_p))
+        return n, f_p
+
+    ctl.plan_pulse = checked
+    for k, x in enumerate(xs):
+        stopped = ctl.outcome == Outcome.STOPPED
+        u = ctl.update(k * T, x, x_ref)
+        assert math.isfinite(u) and abs(u) <= 300.0
+        assert ctl.outcome in (Outcome.ACTIVE, Outcome.SETTLED, Outcome.STOPPED)
+        if not abs(x) <= X_LIMIT:
+            # an invalid reading stops a controller that had not stopped already
+            assert ctl.outcome == Outcome.STOPPED and u == 0.0
+            assert stopped or ctl.outcome_reason == Reason.INVALID_MEASUREMENT
+    # (a first reading that is invalid leaves the "not read yet" NaNs of a new maneuver)
+    assert all(math.isfinite(v) for v in ctl.state()) or not abs(xs[0]) <= X_LIMIT
+
+
+# -- honest outcomes -------------------------------------------------------------------------
+def test_outcome_codes_are_outputs_with_their_words():
+    names = {v.name for v in CONTROLLER_OUTPUTS}
+    assert {"outcome", "outcome_reason", "f_low"} <= names
+    assert OUTCOMES == ("active", "settled", "stopped")
+    assert OUTCOME_REASONS[Reason.PULSE_BUDGET] == "pulse_budget"
+    assert OUTCOME_REASONS[Reason.TIME_ENDED] == "time_ended"
+
+
+def test_a_stopped_maneuver_says_why_and_a_settled_one_is_within_tolerance():
+    budget = _run(TABLE_1, _settings("exact", tolerance=1e-9, m_est=60.0, f_c_est=40.0,
+                                     max_pulses=1), iterations=1)
+    s = summarize(budget.traces[0], 1e-9)
+    assert (s["outcome"], s["outcome_reason"]) == ("stopped", "pulse_budget")
+    assert abs(s["final_error_m"]) > 1e-9
+    settled = _run(TABLE_1, _settings("papwc"), iterations=1)
+    s = summarize(settled.traces[0], 2e-5)
+    assert (s["outcome"], s["outcome_reason"]) == ("settled", "within_tolerance")
+    assert abs(s["final_error_m"]) <= 2e-5
+    # PWC at tolerance 0 never settles: its budget of 20 pulses ends the maneuver
+    pwc = _run(TABLE_1, _settings("pwc"), iterations=1)
+    s = summarize(pwc.traces[0], 0.0)
+    assert s["outcome"] == "stopped" and s["outcome_reason"] in ("pulse_budget", "time_ended")
+
+
+def test_a_maneuver_still_active_at_its_end_stopped_because_time_ended():
+    result = _run(TABLE_1, _settings("papwc"), iterations=1, duration=0.05)
+    s = summarize(result.traces[0], 2e-5)
+    assert (s["outcome"], s["outcome_reason"]) == ("stopped", "time_ended")
+
+
+def test_no_pulse_that_would_end_the_maneuver_farther_than_it_started():
+    """PWC's smallest pulse (d_min of Eq. (19), 186 um) on a 50 um move: it cannot help, so
+    PWC stops at once instead of ending 136 um away."""
+    result = _run(TABLE_1, _settings("pwc"), x_ref=5e-5, iterations=1)
+    s = summarize(result.traces[0], 0.0)
+    assert s["pulses"] == 0 and (s["outcome"], s["outcome_reason"]) == (
+        "stopped", "no_move_helps")
+    unguarded = _run(TABLE_1, _settings("pwc", safeguards=False), x_ref=5e-5, iterations=1)
+    x = unguarded.traces[0].column("x")
+    assert abs(5e-5 - x[-1]) > 5e-5  # the paper's law ends farther away
+
+
+# -- the pulse bound -------------------------------------------------------------------------
+class Scripted:
+    """Forces played one per sample; a fixed outcome (for the trace)."""
+
+    kind = "scripted"
+
+    def __init__(self, forces, f_low=130.0):
+        self.forces = list(forces)
+        self.k = 0
+        self.mode = Mode.SETTLED
+        self.pulses = 0
+        self.revision = 0
+        self.f_low = f_low
+        self.outcome = Outcome.ACTIVE
+        self.outcome_reason = Reason.NONE
+
+    def reset(self):
+        self.k = 0
+
+    def update(self, t, x_meas, x_ref):
+        u = self.forces[self.k] if self.k < len(self.forces) else 0.0
+        if u != 0.0 and (self.k == 0 or self.forces[self.k - 1] == 0.0):
+            self.pulses += 1
+        self.mode = Mode.PULSE if u != 0.0 else Mode.WAIT
+        self.k += 1
+        return u
+
+    def estimates(self):
+        return {"b_hat": 0.0, "f_c_hat": 0.0}
+
+
+def _scripted_trace(forces, x_ref, f_low=130.0):
+    plant = PhysicsSlave()
+    plant.set_start_values(TABLE_1)
+    tr = run_iteration(plant, ControllerSlave(Scripted(forces, f_low)),
+                       Maneuver(x_ref=x_ref, duration=0.5))
+    assert not tr.error
+    return tr
+
+
+def test_a_long_pulse_on_a_small_error_is_a_runaway():
+    tr = _scripted_trace([300.0] * 3 + [0.0] * 40, x_ref=1e-4)
+    (p,) = pulses_of(tr)
+    assert p.k == 0 and p.amplitude == 300.0 and p.e == 1e-4
+    # 3 samples at 300 N move 1.47 mm: 9.8 times 1.5*|e|
+    assert p.d == pytest.approx(1.465e-3, rel=1e-3)
+    assert pulse_ratio([tr], TABLE_1, T)[0] == pytest.approx(p.d / 1.5e-4)
+
+
+def test_the_smallest_pulse_is_never_a_runaway():
+    """One sample at the controller's lowest height f_low is its smallest pulse, whatever
+    the error: on Eq. (1) at 300 N it is d_min of Eq. (19), 1.8567e-4 m."""
+    tr = _scripted_trace([300.0] + [0.0] * 40, x_ref=1e-6, f_low=300.0)
+    (p,) = pulses_of(tr)
+    assert p.d == pytest.approx(1.8567e-4, rel=1e-4)
+    assert pulse_ratio([tr], TABLE_1, T)[0] == pytest.approx(1.0, rel=1e-12)
+    # declared lower, the same pulse is one
+    tr = _scripted_trace([300.0] + [0.0] * 40, x_ref=1e-6, f_low=130.0)
+    assert pulse_ratio([tr], TABLE_1, T)[0] > 10.0
+
+
+def test_the_bound_replays_the_plant_state():
+    """On a flexible drive still ringing, the smallest pulse is computed from that state."""
+    bound = PulseBound(FLEXIBLE, T)
+    tr = _scripted_trace([], x_ref=0.0)
+    assert bound.ratios([tr]) == [0.0]
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_state_round_trip_with_noise_continues_identically(kind):
+    plant = {**TABLE_1, "noise_std": 2e-7, "x_resolution": 1e-7, "seed": 2}
+    settings = _settings(kind)
+    a = make_controller(settings, T)
+    slave = PhysicsSlave()
+    slave.set_start_values(plant)
+    first = run_iteration(slave, a, Maneuver(x_ref=0.01, duration=0.6))
+    assert not first.error
+    b = make_controller(settings, T)
+    b.set_state(a.state())
+    assert b.state() == a.state()
+    rng_x = [0.01 + 1e-7 * ((k * 7919) % 13 - 6) for k in range(60)]
+    for k, x in enumerate(rng_x):
+        assert a.update(0.6 + k * T, x, 0.01) == b.update(0.6 + k * T, x, 0.01)
+    assert a.state() == b.state()
+
+
+def test_settings_are_model_layer_entries():
+    from papwc.controllers.settings import SETTINGS_BY_NAME
+
+    for name, unit, default in [("safeguards", "", True), ("rest_auto", "", True),
+                                ("f_mode", "Hz", 0.0), ("trust0", "1", 0.5),
+                                ("max_pulses", "", 20)]:
+        var = SETTINGS_BY_NAME[name]
+        assert var.unit == unit and var.default == default
+    assert SETTINGS_BY_NAME["trust0"].kinds == ("exact",)
+    assert SETTINGS_BY_NAME["f_mode"].kinds == ()
+    assert dataclasses.replace(_settings("papwc"), f_mode=-1.0).problems() == [
+        ("f_mode", "f_mode = -1.0 Hz: must satisfy 0 <= f_mode <= 1e+06 Hz")]
