@@ -359,7 +359,8 @@ def test_robust_to_spread_plants_and_wrong_estimates(res):
         # (the second iteration may take two pulses more since the trust region starts at
         # trust0 = 0.5 and f_s is probed with pulses toward the target)
         _check_maneuvers(result, tol, bound, max_pulses=5 if res == 0.0 else 8)
-        _check_maneuvers(result, tol, bound, first=3, max_pulses=3)
+        # (on counts a refit may cost one pulse more: measured at most 4 over these draws)
+        _check_maneuvers(result, tol, bound, first=3, max_pulses=3 if res == 0.0 else 4)
 
 
 @pytest.mark.parametrize("name", ["exact.toml", "exact_encoder.toml"])
@@ -372,3 +373,15 @@ def test_scenario_files(name):
     result = run_controller(slave, sc.controllers[0], man)
     bound = max(sc.plant["x_resolution"], 1e-7)
     _check_maneuvers(result, sc.controllers[0].tolerance, bound, max_pulses=5)
+
+
+def test_a_fit_that_ran_into_c_0_is_freed_by_a_fresh_start():
+    # One-sample pulses of the Table 1 plant (m = 150 kg, f_c = 100 N, c = 700 N.s/m),
+    # observed one by one from the wrong f_c_est = 80 N: continued alone, the fit runs into
+    # the bound c = 0 and stays there (measured: 182 kg, 95 N, c = 0, 2.7 % misfit).
+    est = PulseModelEstimator(150.0, 80.0, 0.0, 0.01, 300.0, history=16, x_resolution=0.0)
+    for f in (132.265098025646, 142.38926596621363, 137.28081188964518, 187.54240878479098):
+        est.observe(1, f, step_pulse(f, 1, 0.01, 150.0, 100.0, 130.0, 700.0)[0])
+    m, f_c, c = est.params()
+    assert m == pytest.approx(150.0, rel=1e-5) and f_c == pytest.approx(100.0, rel=1e-6)
+    assert c == pytest.approx(700.0, rel=1e-4)

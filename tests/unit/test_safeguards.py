@@ -144,6 +144,29 @@ def test_a_fit_fooled_by_noise_cannot_plan_a_runaway_pulse():
             assert pred <= ctl.trust() * e * (1 + 1e-9) or (n == 1 and abs(f_p) <= ctl.f_low)
 
 
+def test_a_model_that_missed_falls_back_to_the_smallest_pulse():
+    """After pulses the model missed (by more than 50 %), only the smallest pulse toward the
+    target is made, and only while it cannot end farther than now; after three misses of
+    more than 100 % a stop says the model was rejected."""
+    ctl = make_controller(_settings("exact"), T)
+    for f, d in [(300.0, 2e-4), (200.0, 3e-5), (150.0, 2e-5)]:
+        ctl.learn(3, f, d)
+    d_small = ctl.displacement(1, ctl.f_floor)
+    e = 10.0 * d_small
+    trusted = ctl.plan_pulse(e)
+    assert trusted != (1, ctl.f_floor)  # a model that predicts well plans the move
+    ctl.misses, ctl.errors = 1, [0.1, 0.8]
+    ctl.estimator.rel_misfit = 0.8
+    assert ctl.plan_pulse(e) == (1, ctl.f_floor)
+    assert ctl.plan_pulse(-e) == (1, -ctl.f_floor)
+    assert ctl.plan_pulse(0.5 * d_small)[1] == 0.0
+    assert ctl.refusal == Reason.NO_MOVE_HELPS
+    ctl.misses = 3
+    assert ctl.plan_pulse(e) == (1, ctl.f_floor)
+    assert ctl.plan_pulse(0.5 * d_small)[1] == 0.0
+    assert ctl.refusal == Reason.MODEL_REJECTED
+
+
 def test_noise_weights_the_fit_and_marks_what_did_not_move():
     ctl = make_controller(_settings("exact", x_resolution=1e-7), T)
     ctl.sigma2 = (2e-7) ** 2

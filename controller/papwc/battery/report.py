@@ -122,7 +122,8 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
               "`success_tolerance`, else the controller's `tolerance`) and there is no limit "
               "cycle (pulses in both directions in the final quarter of the iteration). "
               "Errors and pulses are taken over the runs with status ok, in the last "
-              "iteration; settle times over those that settled.", "",
+              "iteration. *At rest*: the runs whose controller held u = 0 to the end "
+              "(settled or stopped), with the time from which it did.", "",
               "**Outcome** (last iteration): `settled` when the controller ended settled (|e| "
               "within its tolerance at rest, as it measured), else `stopped` with its reason; "
               "*false settled* counts the runs it called settled while the true |final error| "
@@ -149,8 +150,9 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
         first = "| case " if battery.cases else ""
         lines += [first + "| controller | runs | errors | success | limit cycles | "
                   "abs(e) median (m) | abs(e) p95 (m) | abs(e) max (m) | pulses median | p95 | "
-                  "max | settled | settle median (s) | p95 | max | outcome settled | stopped "
-                  "(reasons) | false settled | pulse ratio max | runaway pulses | farther |",
+                  "max | at rest | at rest from, median (s) | p95 | max | outcome settled | "
+                  "stopped (reasons) | false settled | pulse ratio max | runaway pulses | "
+                  "farther |",
                   ("|---" if battery.cases else "")
                   + "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:"
                   + "|---:|---|---:|---:|---:|---:|"]

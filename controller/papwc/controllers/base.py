@@ -26,7 +26,7 @@ Rest is read from the measured position alone: at rest means it has stayed
 within a band of width B over a dwell of D sample intervals. B and D are
 ``rest_band`` and ``rest_samples`` (0 and 1 by default: exactly unchanged over
 one interval); with ``rest_auto`` they grow to ``6*sigma`` and 5 samples once
-encoder noise sigma has been measured, and D to one period of ``f_mode``. The
+encoder noise sigma has been measured, and D to 2.5 periods of ``f_mode``. The
 noise sigma is estimated from samples at rest: from the spread of the readings
 over each rest, and, before any rest could be seen, from force-free windows of
 16 readings whose net drift is within 3 times their sample-to-sample scatter
@@ -166,7 +166,7 @@ class Controller:
         self.k_d = settings.k_d_value
         self.guarded = bool(settings.safeguards)
         self.max_pulses = int(settings.max_pulses)
-        # Dwell from the slowest mode: one period, in whole samples.
+        # Dwell from the slowest mode: MODE_PERIODS periods, in whole samples.
         f_mode = float(settings.f_mode)
         self.mode_samples = (int(math.ceil(MODE_PERIODS / (f_mode * self.T) - 1e-9))
                              if f_mode > 0.0 else 0)

@@ -24,10 +24,15 @@ less than one sample at the stiction force, Eq. (20). This controller
   by two pulses: first away from the target by d_small, then back by
   ``|e| + d_small`` in one pulse; no pulse moves farther than the larger of
   ``|e|`` and d_small;
+* falls back to cautious pulses when its model is not to be trusted (a pulse
+  missed while its relative error is 50 % or more, or three pulses in a row
+  missed by more than 100 %): only the smallest pulse toward the target, and
+  only while that cannot end farther from it than the mass is;
 * stops once ``|e|`` is below what a move can achieve (half the encoder
-  resolution, or the model's relative error times the move), when its model
-  failed three pulses in a row by more than 100 %, and after ``max_pulses``
-  pulses in one maneuver at the latest, so it cannot limit-cycle.
+  resolution, or the model's relative error times the move), when even the
+  cautious pulse cannot help a rejected model (``model_rejected``), and after
+  ``max_pulses`` pulses in one maneuver at the latest, so it cannot
+  limit-cycle.
 
 Standard library only (bundled into the controller FMU).
 """
@@ -42,6 +47,9 @@ from .settings import ControllerSettings
 
 __all__ = ["ExactController", "PulseModelEstimator"]
 
+#: A fit from a fresh start replaces the one continued from the current estimate only if
+#: its cost is below this fraction of the other's.
+_RESTART_GAIN = 0.01
 #: Bounds of the correction of the model by the nearest earlier pulses (a factor).
 _CORRECTION_BOUNDS = (1e-3, 1e3)
 #: Where a pulse that did not move contradicts the f_s bracket, the new upper end of it
@@ -54,8 +62,11 @@ _USEFUL = 0.2
 #: A single-sample pulse near breakaway that moved less than this fraction of the
 #: prediction counts as not having moved (the Stribeck evidence PAPWC uses too).
 _FAR_LESS = 0.25
-#: Consecutive pulses that the model misses by more than 100 % after which it is rejected.
+#: Consecutive pulses that the model misses by more than 100 % after which it is rejected:
+#: only the smallest pulse is made from then on (while it can bring the mass nearer).
 _REJECT_AFTER = 3
+#: Relative model error from which, after a missed pulse, only the smallest pulse is made.
+_CAUTIOUS = 0.5
 #: Relative standard deviation of a measured displacement (model and rounding).
 _SIGMA_REL = 1e-6
 #: Smallest standard deviation of a measured displacement, m.
@@ -258,12 +269,34 @@ class PulseModelEstimator:
         return out
 
     def fit(self) -> None:
-        """Levenberg-Marquardt iterations from the current estimate over the history."""
-        theta = list(self.theta)
+        """Levenberg-Marquardt iterations over the history, the best of three starts.
+
+        From the current estimate, and from the initial one and the initial one
+        with ``c = c_scale``, whose result is taken only when it explains the
+        pulses far better (cost below ``_RESTART_GAIN`` times the other's): a fit
+        that ran into a bound (``c = 0`` after a few pulses of one shape) is not
+        kept there by the next pulses. With an encoder (``x_resolution > 0``)
+        or noise measured (``meas_sigma > 0``) the fit is only continued: a
+        fresh start would chase the rounding and the noise.
+        """
+        t0 = list(self.theta0)
+        best = self._lm(list(self.theta))
+        exact_sensor = self.meas_sigma == 0.0 and self.x_resolution == 0.0
+        for start in (t0, [t0[0], t0[1], 1.0]) if exact_sensor else ():
+            found = self._lm(start)
+            if found is not None and (best is None or found[1] < _RESTART_GAIN * best[1]):
+                best = found
+        if best is not None:
+            self.theta = best[0]
+        self.rel_misfit = self._misfit()
+
+    def _lm(self, theta: list[float]) -> tuple[list[float], float] | None:
+        """Levenberg-Marquardt from theta: the estimate reached and its cost (None: none)."""
+        theta = [self._clip(j, theta[j]) for j in range(3)]
         theta[1] = min(theta[1], self._theta2_max())
         r = self._residuals(theta)
         if r is None:
-            return
+            return None
         cost = sum(q * q for q in r)
         mu = 1e-3
         h = 1e-6
@@ -275,7 +308,7 @@ class PulseModelEstimator:
                 tm[j] -= h
                 rp, rm = self._residuals(tp), self._residuals(tm)
                 if rp is None or rm is None:
-                    return
+                    return theta, cost
                 jac.append([(a - b) / (2.0 * h) for a, b in zip(rp, rm, strict=True)])
             jtj = [[sum(a * b for a, b in zip(jac[i], jac[k], strict=True)) for k in range(3)]
                    for i in range(3)]
@@ -303,8 +336,7 @@ class PulseModelEstimator:
                 mu *= 10.0
             if not improved or moved < 1e-14:
                 break
-        self.theta = theta
-        self.rel_misfit = self._misfit()
+        return theta, cost
 
     def _misfit(self) -> float:
         """Root mean square of the relative model errors beyond the resolution.
@@ -529,10 +561,15 @@ class ExactController(Controller):
         ``f_floor`` (and above the highest height known not to move) that the
         model says moves ``trust*|e|`` is tried first: it probes f_s.
 
+        While the model is not to be trusted (a missed pulse with a relative
+        error of 50 % or more, or three pulses in a row missed by more than
+        100 %) only the smallest pulse toward the target is planned, if it is
+        predicted to move at most |e|.
+
         Refuses (height 0; the controller stops, see :attr:`refusal`) when e is
         not finite, when ``max_pulses`` pulses have been applied in this
-        maneuver, when the model missed three pulses in a row by more than
-        100 %, or when no pulse can bring the mass nearer: ``|e|`` below what a
+        maneuver, when a rejected model's smallest pulse cannot help
+        (``model_rejected``), or when no pulse can bring the mass nearer: ``|e|`` below what a
         move can achieve (half the measurement resolution, or the error the
         model's relative error implies for the pulses of the move), or below
         half the smallest pulse with too little trust for a two-pulse move.
@@ -543,9 +580,6 @@ class ExactController(Controller):
         if self.pulses >= self.max_pulses:
             self.refusal = Reason.PULSE_BUDGET
             return 1, 0.0
-        if self.misses >= _REJECT_AFTER:
-            self.refusal = Reason.MODEL_REJECTED
-            return 1, 0.0
         est = self.estimator
         f_lo = self.f_floor
         d = abs(e)
@@ -554,6 +588,15 @@ class ExactController(Controller):
         rel = max(min(est.rel_misfit, max(self.errors)), 1e-9)
         toward = math.copysign(1.0, e)
         self.refusal = Reason.NO_MOVE_HELPS
+        if self.misses >= _REJECT_AFTER or (self.misses and rel >= _CAUTIOUS):
+            # The model is not to be trusted: only the smallest pulse toward the target,
+            # and only while it lands no farther than now even if it moves twice as far
+            # as the pulses of that height moved so far.
+            if d_small <= d:
+                return 1, toward * f_lo
+            if self.misses >= _REJECT_AFTER:
+                self.refusal = Reason.MODEL_REJECTED
+            return 1, 0.0
         if trust * d >= d_small:
             if d <= max(0.5 * est.x_resolution, rel * d):
                 return 1, 0.0

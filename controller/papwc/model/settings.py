@@ -115,7 +115,8 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "and the period of f_mode; with an ideal, noiseless encoder and f_mode = 0 they "
              "stay rest_band and rest_samples", "", True, type="Boolean"),
     Variable("f_mode", "Frequency of the machine's slowest mode (0 = rigid or unknown): rest "
-             "lasts at least one period of it, and pulses are shaped not to excite it", "Hz",
+             "lasts at least 2.5 periods of it (the ringing a pulse leaves is waited out "
+             "before the pulse is judged) and the trust region stays at most 0.5", "Hz",
              0.0, min=0.0, max=1e6, nominal=10.0),
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
              "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
@@ -228,7 +229,7 @@ OUTCOME_REASONS: tuple[str, ...] = (
     "pulse_budget",  # 3: max_pulses pulses in this maneuver
     "model_rejected",  # 4: its model predicts so badly that no pulse can be trusted
     "time_ended",  # 5: the maneuver ended while the controller was still active
-    "invalid_measurement",  # 6: the measured error is not finite
+    "invalid_measurement",  # 6: a reading or reference not finite, or beyond 1e6 m
     "cannot_move",  # 7: the largest pulse did not move the mass
 )
 
