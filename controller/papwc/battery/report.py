@@ -131,8 +131,10 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
               "ratio* is the largest ratio of a pulse's displacement (to the next rest) to the "
               "larger of 1.5*|e| + one encoder count and the smallest pulse the controller "
               "can make (one sample at its lowest height, on the run's plant in its state "
-              "then; `papwc.master.pulses`), > 1 a runaway pulse; *farther* counts the "
-              "maneuvers that ended farther from the target than they started.", ""]
+              "then; `papwc.master.pulses`), > 1 a runaway pulse; *runaway maneuvers* "
+              "counts the maneuvers (iterations) with a runaway pulse (a ratio above "
+              "1 + 1e-9: the replay's rounding); *farther* counts the maneuvers that ended "
+              "farther from the target than they started.", ""]
     last = [r for r in rows if r["last_iteration"]]
     for battery in batteries:
         b_runs = [s for s in runs if s.battery == battery.name]
@@ -151,7 +153,7 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
         lines += [first + "| controller | runs | errors | success | limit cycles | "
                   "abs(e) median (m) | abs(e) p95 (m) | abs(e) max (m) | pulses median | p95 | "
                   "max | at rest | at rest from, median (s) | p95 | max | outcome settled | "
-                  "stopped (reasons) | false settled | pulse ratio max | runaway pulses | "
+                  "stopped (reasons) | false settled | pulse ratio max | runaway maneuvers | "
                   "farther |",
                   ("|---" if battery.cases else "")
                   + "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:"

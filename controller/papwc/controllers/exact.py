@@ -65,6 +65,8 @@ _FAR_LESS = 0.25
 #: Consecutive pulses that the model misses by more than 100 % after which it is rejected:
 #: only the smallest pulse is made from then on (while it can bring the mass nearer).
 _REJECT_AFTER = 3
+#: Largest step of a probe of f_s above the highest height known not to move (relative).
+_PROBE_STEP = 0.1
 #: Relative model error from which, after a missed pulse, only the smallest pulse is made.
 _CAUTIOUS = 0.5
 #: Relative standard deviation of a measured displacement (model and rounding).
@@ -432,7 +434,11 @@ class ExactController(Controller):
         lower = max(est.f_s_lo, est.f_c_hat)
         floor = est.f_s_hi
         if floor - lower > self.f_s_tol * floor:
+            # probe: the middle of the bracket, but no more than _PROBE_STEP above the
+            # highest height known not to move (a pulse far above breakaway runs away)
             floor = 0.5 * (lower + floor)
+            if est.f_s_lo > 0.0:
+                floor = min(floor, est.f_s_lo * (1.0 + _PROBE_STEP))
         # Eq. (3) gives no motion at or below f_c.
         return min(max(floor, est.f_c_hat * (1.0 + 1e-9)), self.settings.f_p_max)
 
