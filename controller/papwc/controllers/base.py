@@ -135,6 +135,10 @@ class Reason:
     CANNOT_MOVE = OUTCOME_REASONS.index("cannot_move")
 
 
+_O_SETTLED = Outcome.SETTLED
+_M_SETTLED = Mode.SETTLED
+
+
 class Controller:
     """Base of the pulse controllers: coarse feedback, hand-over and pulse sequencing.
 
@@ -165,6 +169,7 @@ class Controller:
         self.k_p = settings.k_p_value
         self.k_d = settings.k_d_value
         self.guarded = bool(settings.safeguards)
+        self._rest_auto = bool(settings.rest_auto)
         self.max_pulses = int(settings.max_pulses)
         # Dwell from the slowest mode: MODE_PERIODS periods, in whole samples.
         f_mode = float(settings.f_mode)
@@ -241,6 +246,18 @@ class Controller:
             return 0.0
         if not (abs(x_meas) <= X_LIMIT and abs(x_ref) <= X_LIMIT):  # also NaN
             return self._stop(Reason.INVALID_MEASUREMENT)
+        if (self.outcome == _O_SETTLED and self.mode == _M_SETTLED and x_meas == self._anchor
+                and self._lo == self._hi and self.sigma2 == 0.0
+                and self._n >= self._dwell and self._n >= NOISE_DWELL
+                and abs(x_ref - x_meas) <= self.settings.tolerance):
+            # Settled and the reading unchanged: the steps below would only count it
+            # (the same state, the same result, less work).
+            self._n += 1
+            self._v_hat = 0.0
+            self._x_prev = x_meas
+            self._ring[self._ring_n % NOISE_WINDOW] = x_meas
+            self._ring_n += 1
+            return 0.0
         if self._first:
             at_rest = True
             self._first = False
@@ -251,7 +268,11 @@ class Controller:
         else:
             dx = x_meas - self._x_prev
             self._v_hat = dx / self.T
-            at_rest = self._rest(x_meas)
+            if x_meas == self._anchor and self._lo == self._hi:  # _rest, its common case
+                self._n += 1
+                at_rest = self._n > self._dwell
+            else:
+                at_rest = self._rest(x_meas)
         self._x_prev = x_meas
 
         if self._pulse_left > 0:
@@ -268,7 +289,7 @@ class Controller:
                 if dx * self._dir < 0.0:
                     self._turns += 1
                 self._dir = dx
-            if self.settings.rest_auto:
+            if self._rest_auto:
                 if at_rest and self._turns >= 2 and self.sigma2 == 0.0:
                     # noise makes equal readings by chance, not many in a row
                     at_rest = self._n > NOISE_DWELL and self._lo == self._hi
@@ -559,6 +580,7 @@ class Controller:
 
     def set_state(self, values: list[float]) -> None:
         """Restore a state returned by :meth:`state`."""
+        self.revision += 1  # the estimates (and f_low) may differ
         v = [float(q) for q in values]
         self.mode, self.pulses, self._first = int(v[0]), int(v[1]), bool(v[2])
         self._x_prev, self._still, self._pulse_left = v[3], int(v[4]), int(v[5])

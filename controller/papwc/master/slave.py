@@ -294,9 +294,9 @@ class ControllerSlave(_WatchedAttributes):
     def _path(self, name: str) -> str:
         if name in ("x_meas", "x_ref", "u"):
             return name
-        if name in ("mode", "pulses", "f_low", "outcome", "outcome_reason"):
+        if name in ("mode", "pulses", "outcome", "outcome_reason"):
             return f"controller.{name}"
-        return f"estimates.{name}"
+        return f"estimates.{name}"  # f_low too: it changes with the estimates only
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
         """Parameters and input start values, applied at every (re)initialization."""
@@ -334,7 +334,8 @@ class ControllerSlave(_WatchedAttributes):
         self._refresh()
 
     def _refresh_estimates(self) -> None:
-        self.estimates = SimpleNamespace(**self.controller.estimates())
+        self.estimates = SimpleNamespace(
+            **{**self.controller.estimates(), "f_low": self.controller.f_low})
         self._revision = self.controller.revision
 
     def close(self) -> None:
