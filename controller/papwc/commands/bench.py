@@ -11,7 +11,7 @@ HELP = "measure and print cost figures (per-call cost of the FMUs, ...)"
 EPILOG = """\
 examples:
   papwc bench --quick              # builds the FMUs into a temporary folder, fewer iterations
-  papwc bench                      # the full measurement (about 80 s)
+  papwc bench                      # the full measurement (about 3 min)
   papwc bench --fmu-dir build      # use FMUs already written by `papwc build`
   papwc bench --realism            # also the wall time of scenarios/realism.toml (~1-2 min)
 """
