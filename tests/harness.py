@@ -28,6 +28,9 @@ from typing import Any, NamedTuple
 from papwc.master import Execution, FixedStepAlgorithm, SignalSlave, Slave
 from papwc.model.stickslip import simulate
 
+#: The plant of the paper's Table 1 (SI units).
+TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+
 #: A valid scenario: one PAPWC controller, one 0.5 s iteration.
 GOOD = """
 name = "t"

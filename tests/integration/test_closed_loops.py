@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 
 import pytest
-from harness import ScriptedController
+from harness import TABLE_1, ScriptedController
 
 from papwc.analysis import paper
 from papwc.controllers.settings import ControllerSettings
@@ -23,7 +23,6 @@ from papwc.master import (
 )
 from papwc.scenario import load_scenario
 
-TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
 T = 0.01
 
 

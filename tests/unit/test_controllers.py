@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 import pytest
+from harness import TABLE_1
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
@@ -22,7 +23,6 @@ from papwc.controllers.settings import ControllerSettings
 from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration, summarize
 from papwc.model.pulse import b_coulomb, pulse_displacement
 
-TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
 T = 0.01
 
 

@@ -14,7 +14,7 @@ import random
 from pathlib import Path
 
 import pytest
-from harness import step_pulse
+from harness import TABLE_1, step_pulse
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose
@@ -26,7 +26,6 @@ from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration, 
 from papwc.model.settings import CONTROLLER_SETTINGS
 from papwc.scenario import load_scenario
 
-TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
 T = 0.01
 SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 import pytest
-from harness import Recorder, ScriptedController, open_loop
+from harness import TABLE_1, Recorder, ScriptedController, open_loop
 
 from papwc.controllers import Mode, make_controller
 from papwc.controllers.settings import ControllerSettings
@@ -32,7 +32,6 @@ from papwc.model.plant import PLANT_DEFAULTS
 from papwc.model.stickslip import quantize, simulate
 
 T = 0.01
-TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
 #: Pulses above f_s both ways, coasting, a sub-stiction force, a reversal while sliding.
 U_SEQ = [300.0] * 5 + [0.0] * 20 + [120.0] * 10 + [-300.0] * 5 + [0.0] * 15
 U_SEQ += [250.0] * 7 + [-200.0] * 4 + [0.0] * 34

@@ -10,6 +10,7 @@ import dataclasses
 import math
 
 import pytest
+from harness import TABLE_1
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -28,7 +29,6 @@ from papwc.master.pulses import PulseBound, pulse_ratio, pulses_of
 from papwc.master.slave import ControllerSlave
 from papwc.model.settings import CONTROLLER_OUTPUTS, OUTCOME_REASONS, OUTCOMES
 
-TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
 T = 0.01
 KINDS = ("pwc", "papwc", "exact")
 

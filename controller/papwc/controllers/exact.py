@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 
-from ..model.pulse import b_coulomb, bisect_increasing, pulse_displacement
+from ..model.pulse import b_coulomb, nearest_increasing, pulse_displacement
 from .base import Z_DECIDE, Controller, Reason
 from .settings import ControllerSettings
 
@@ -549,16 +549,7 @@ class ExactController(Controller):
 
     def _amplitude(self, d: float, n: int, f_lo: float, f_hi: float) -> float:
         """Height in [f_lo, f_hi] whose corrected displacement over n samples is closest to d."""
-
-        def moved(f: float) -> float:
-            return self.displacement(n, f)
-
-        if moved(f_lo) >= d:
-            return f_lo
-        if moved(f_hi) <= d:
-            return f_hi
-        lo, hi = bisect_increasing(moved, d, f_lo, f_hi)
-        return lo if d - moved(lo) <= moved(hi) - d else hi
+        return nearest_increasing(lambda f: self.displacement(n, f), d, f_lo, f_hi)
 
     def plan_pulse(self, e: float) -> tuple[int, float]:
         """Pulse for the error e (m): toward the target, or away first for a two-pulse move.

@@ -33,6 +33,7 @@ from .stickslip import coast_to_rest, step
 __all__ = [
     "b_coulomb",
     "bisect_increasing",
+    "nearest_increasing",
     "pulse_amplitude",
     "pulse_displacement",
     "pulse_response",
@@ -196,12 +197,20 @@ def pulse_amplitude(
         bound if ``d`` lies outside the displacements the bounds give.
     """
 
-    def displacement(f_p: float) -> float:
-        return pulse_displacement(f_p, t_p, m, f_c, c)
+    return nearest_increasing(lambda f_p: pulse_displacement(f_p, t_p, m, f_c, c), d, f_lo, f_hi)
 
-    if displacement(f_lo) >= d:
-        return f_lo
-    if displacement(f_hi) <= d:
-        return f_hi
-    lo, hi = bisect_increasing(displacement, d, f_lo, f_hi)
-    return lo if d - displacement(lo) <= displacement(hi) - d else hi
+
+def nearest_increasing(f: Callable[[float], float], target: float, lo: float,
+                       hi: float) -> float:
+    """The x in ``[lo, hi]`` whose ``f(x)`` is nearest ``target``, ``f`` non-decreasing.
+
+    ``lo`` if ``f(lo) >= target``, ``hi`` if ``f(hi) <= target``, else the nearer
+    of the two adjacent floats that :func:`bisect_increasing` brackets the root
+    with.
+    """
+    if f(lo) >= target:
+        return lo
+    if f(hi) <= target:
+        return hi
+    a, b = bisect_increasing(f, target, lo, hi)
+    return a if target - f(a) <= f(b) - target else b
