@@ -28,8 +28,9 @@ from typing import Any, NamedTuple
 from papwc.master import Execution, FixedStepAlgorithm, SignalSlave, Slave
 from papwc.model.stickslip import simulate
 
-#: The plant of the paper's Table 1 (SI units).
+#: The plant of the paper's Table 1 (SI units), and as a scenario file's table.
 TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+TABLE_1_TOML = "".join(["[plant]\n", *(f"{k} = {v!r}\n" for k, v in TABLE_1.items())])
 
 #: A valid scenario: one PAPWC controller, one 0.5 s iteration.
 GOOD = """

@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
+from harness import TABLE_1_TOML
 
 from papwc.battery import (
     BatteryError,
@@ -26,13 +27,7 @@ JOURNAL = "journal.jsonl"
 
 #: A small battery: 2 sweep points (the second makes f_s < f_c: an invalid plant)
 #: times 3 draws, 2 controllers, 2 short iterations.
-SMALL = """\
-name = "small"
-[plant]
-m = 150.0
-f_c = 100.0
-f_s = 130.0
-c = 700.0
+SMALL = 'name = "small"\n' + TABLE_1_TOML + """\
 [maneuver]
 x_ref = 0.01
 T = 0.01

@@ -6,15 +6,11 @@ import csv
 import tomllib
 from pathlib import Path
 
+from harness import TABLE_1_TOML
+
 from papwc.battery import parse_battery, run_battery
 
-TEXT = """\
-name = "cases"
-[plant]
-m = 150.0
-f_c = 100.0
-f_s = 130.0
-c = 700.0
+TEXT = 'name = "cases"\n' + TABLE_1_TOML + """\
 [maneuver]
 x_ref = 1e-3
 duration = 0.4

@@ -5,18 +5,13 @@ from __future__ import annotations
 import tomllib
 
 import pytest
+from harness import TABLE_1_TOML
 
 from papwc.battery import get_field, load_battery, parse_battery, plan_runs
 from papwc.errors import ScenarioError
 from papwc.resources import scenario_file
 
-BASE = """\
-name = "cases"
-[plant]
-m = 150.0
-f_c = 100.0
-f_s = 130.0
-c = 700.0
+BASE = 'name = "cases"\n' + TABLE_1_TOML + """\
 [maneuver]
 x_ref = 0.01
 duration = 0.5

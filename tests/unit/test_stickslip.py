@@ -421,16 +421,13 @@ def test_simulate_is_repeated_step():
 # ---------------------------------------------------------------------------
 
 position_strategy = st.floats(-1.0, 1.0)
+#: Any state, force and step: the inputs of one step.
+STEP_INPUTS = {"params": params_strategy, "x0": position_strategy, "v0": velocity_strategy,
+               "u": force_strategy, "h": step_strategy}
 
 
 @PROPERTY_SETTINGS
-@given(
-    params=params_strategy,
-    x0=position_strategy,
-    v0=velocity_strategy,
-    u=force_strategy,
-    h=step_strategy,
-)
+@given(**STEP_INPUTS)
 def test_friction_never_adds_energy(params, x0, v0, u, h):
     m = params[0]
     x1, v1 = step(x0, v0, u, h, *params)
@@ -465,13 +462,7 @@ def test_sub_stiction_force_never_reverses_motion(params, v0, frac, h):
 
 
 @PROPERTY_SETTINGS
-@given(
-    params=params_strategy,
-    x0=position_strategy,
-    v0=velocity_strategy,
-    u=force_strategy,
-    h=step_strategy,
-)
+@given(**STEP_INPUTS)
 def test_mirror_symmetry(params, x0, v0, u, h):
     x1, v1 = step(x0, v0, u, h, *params)
     xm, vm = step(-x0, -v0, -u, h, *params)

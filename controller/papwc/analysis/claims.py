@@ -688,6 +688,16 @@ def _default_of(scenario, kind: str, name: str) -> Any:
     return SETTINGS_BY_NAME[name].default
 
 
+def _rows_failing(default, rows: list[ClaimRow]):
+    """Append a row per claim (its outcome with the scenario's settings) to ``rows``; yield
+    ``(claim, row)`` for those the scenario does not reproduce (a reading is wanted)."""
+    for claim in CLAIMS:
+        row = ClaimRow(claim, default[claim.key])
+        rows.append(row)
+        if row.default.holds is False:
+            yield claim, row
+
+
 def evaluate_claims(scenario, results: Iterable[RunResult] = (), plant: str = "fmu",
                     fmu: str | os.PathLike | None = None,
                     readings: Mapping[str, Reading | None] | None = None,
@@ -717,12 +727,8 @@ def evaluate_claims(scenario, results: Iterable[RunResult] = (), plant: str = "f
     context = claim_context(scenario)
     try:
         default = _all_outcomes(runs.metrics(Reading()), context)
-        rows = []
-        for claim in CLAIMS:
-            row = ClaimRow(claim, default[claim.key])
-            rows.append(row)
-            if row.default.holds is not False:
-                continue
+        rows: list[ClaimRow] = []
+        for claim, row in _rows_failing(default, rows):
             reading = readings.get(claim.key)
             if reading is not None:
                 outcomes = _all_outcomes(runs.metrics(reading), context)
@@ -829,12 +835,8 @@ def search_readings(scenario, results: Iterable[RunResult] = (), plant: str = "f
             return abs(float(given.get("K_c", 0.0)) - float(_default_of(scenario, kind, "K_c"))
                        ) if "K_c" in given else 0.0
 
-        rows = []
-        for claim in CLAIMS:
-            row = ClaimRow(claim, default[claim.key])
-            rows.append(row)
-            if row.default.holds is not False:
-                continue
+        rows: list[ClaimRow] = []
+        for claim, row in _rows_failing(default, rows):
             best = None
             for pwc in singles["pwc"] if "pwc" in claim.kinds else [empty]:
                 for papwc in singles["papwc"] if "papwc" in claim.kinds else [empty]:
