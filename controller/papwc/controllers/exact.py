@@ -24,6 +24,10 @@ less than one sample at the stiction force, Eq. (20). This controller
   by two pulses: first away from the target by d_small, then back by
   ``|e| + d_small`` in one pulse; no pulse moves farther than the larger of
   ``|e|`` and d_small;
+* after a pulse its model missed by more than 50 %, plans no pulse wider than
+  the widest it has made nor more than 10 % higher than the highest of at least
+  that width (a model refitted to one or two pulses of a plant unlike Eq. (3)
+  says little about a pulse unlike them);
 * falls back to cautious pulses when its model is not to be trusted (a pulse
   missed while its relative error is 50 % or more, or three pulses in a row
   missed by more than 100 %): only the smallest pulse toward the target, and
@@ -65,6 +69,11 @@ _FAR_LESS = 0.25
 #: Consecutive pulses that the model misses by more than 100 % after which it is rejected:
 #: only the smallest pulse is made from then on (while it can bring the mass nearer).
 _REJECT_AFTER = 3
+#: Largest step above the highest height tried (of at least the planned width) while the
+#: model has not yet predicted a pulse well (relative).
+_TRIED_STEP = 0.1
+#: Relative error of the last prediction beyond which planned pulses stay near those tried.
+_TRIED_AFTER = 0.5
 #: Largest step of a probe of f_s above the highest height known not to move (relative).
 _PROBE_STEP = 0.1
 #: Relative model error from which, after a missed pulse, only the smallest pulse is made.
@@ -598,6 +607,7 @@ class ExactController(Controller):
             if d <= max(0.5 * est.x_resolution, rel * d):
                 return 1, 0.0
             n, f_p = self.plan_displacement(trust * d, f_lo)
+            n, f_p = self._within_tried(n, f_p, trust * d, f_lo)
             return n, toward * f_p
         if d_small <= 1.5 * d or abs(d_small - d) <= rel * d_small:
             return 1, toward * f_lo  # the smallest pulse toward: it lands within d/2
@@ -623,6 +633,25 @@ class ExactController(Controller):
         if d_small < 2.0 * d and abs(d_small - d) < d:
             return 1, toward * f_lo
         return 1, 0.0
+
+    def _within_tried(self, n: int, f_p: float, d: float, f_lo: float) -> tuple[int, float]:
+        """The planned pulse (n samples, height f_p > 0 N, for d m), kept near those tried.
+
+        After a pulse the model missed by more than ``_TRIED_AFTER``, a
+        pulse is no wider than the widest in the history and no higher than
+        ``1 + _TRIED_STEP`` times the highest of at least its width (but at
+        least ``f_lo``): on a plant unlike Eq. (3) a model fitted to one or two
+        pulses says little about a pulse unlike them.
+        """
+        est = self.estimator
+        if self.errors[-1] <= _TRIED_AFTER or not est.pulses:
+            return n, f_p
+        n_seen = max(n_i for n_i, _, _ in est.pulses)
+        if n > n_seen:
+            n = n_seen
+            f_p = self._amplitude(d, n, f_lo, self.settings.f_p_max)
+        f_seen = max(f_i for n_i, f_i, _ in est.pulses if n_i >= n)
+        return n, min(f_p, max(f_lo, f_seen * (1.0 + _TRIED_STEP)))
 
     def learn(self, n: int, f_p: float, d: float) -> None:
         """Take the measured displacement d (m) of the pulse (n samples, f_p N) into the model."""
