@@ -185,8 +185,6 @@ class Controller:
         self.trust_value = 1.0
         #: Reason code set by a subclass that refuses to plan (height 0).
         self.refusal = Reason.NO_MOVE_HELPS
-        self._band = float(settings.rest_band)
-        self._dwell = int(settings.rest_samples)
         self._update_rest_test()
         self.reset()
 
@@ -198,7 +196,6 @@ class Controller:
         self._first = True
         self._x_prev = math.nan
         self._v_hat = 0.0
-        self._still = 0
         self._pulse_left = 0
         self._f_pulse = 0.0
         self._n_pulse = 0
@@ -268,7 +265,7 @@ class Controller:
         else:
             dx = x_meas - self._x_prev
             self._v_hat = dx / self.T
-            if x_meas == self._anchor and self._lo == self._hi:  # _rest, its common case
+            if x_meas == self._anchor and self._lo == self._hi:  # the reading unchanged
                 self._n += 1
                 at_rest = self._n > self._dwell
             else:
@@ -395,7 +392,7 @@ class Controller:
         """Band (m) and dwell (sample intervals) from the settings and what was measured."""
         s = self.settings
         band, dwell = float(s.rest_band), int(s.rest_samples)
-        if s.rest_auto:
+        if self._rest_auto:
             if self.sigma2 > 0.0:
                 band = max(band, BAND_SIGMAS * math.sqrt(self.sigma2))
                 dwell = max(dwell, NOISE_DWELL)
@@ -410,10 +407,10 @@ class Controller:
         self._look = 0
 
     def _rest(self, x: float) -> bool:
-        """Add a reading to the present run; whether the mass counts as at rest."""
-        if x == self._anchor and self._lo == self._hi:
-            self._n += 1
-            return self._n > self._dwell
+        """Add a reading other than the run's unchanged one; whether the mass counts as at rest.
+
+        (A reading equal to all of the run's is counted in :meth:`update` itself.)
+        """
         lo = x if x < self._lo else self._lo
         hi = x if x > self._hi else self._hi
         if hi - lo > self._band:
@@ -436,7 +433,7 @@ class Controller:
     def _end_run(self) -> None:
         """A run of readings ends: if it was a rest, its spread updates the noise estimate."""
         n = self._n
-        if (n > NOISE_DWELL and self._sum2 > 0.0 and self.settings.rest_auto
+        if (n > NOISE_DWELL and self._sum2 > 0.0 and self._rest_auto
                 and self.mode != Mode.PULSE and (self.mode != Mode.COARSE or self._released)):
             mean = self._sum / n
             var = max(self._sum2 / n - mean * mean, 0.0) * n / (n - 1)
@@ -484,8 +481,6 @@ class Controller:
         x_hat = self._x_hat()
         e = x_ref - x_hat
         tol = self.settings.tolerance
-        if not math.isfinite(e):
-            return self._stop(Reason.INVALID_MEASUREMENT)
         if self.sigma2 > 0.0:
             # decisions at N = D + 1 readings, then each time N has grown by half
             look = max(self._look, self._dwell + 1)
@@ -568,7 +563,7 @@ class Controller:
         """Everything that evolves, as a flat list of floats (FMU state, serialization)."""
         return [
             float(self.mode), float(self.pulses), float(self._first), self._x_prev,
-            float(self._still), float(self._pulse_left), self._f_pulse, float(self._n_pulse),
+            float(self._pulse_left), self._f_pulse, float(self._n_pulse),
             self._x_start, float(self.last_pulse[0]), self.last_pulse[1], self.last_d,
             self.f_p_floor, self._v_hat, float(self._waited),
             float(self.outcome), float(self.outcome_reason), float(self._stopped), self._e0,
@@ -583,19 +578,19 @@ class Controller:
         self.revision += 1  # the estimates (and f_low) may differ
         v = [float(q) for q in values]
         self.mode, self.pulses, self._first = int(v[0]), int(v[1]), bool(v[2])
-        self._x_prev, self._still, self._pulse_left = v[3], int(v[4]), int(v[5])
-        self._f_pulse, self._n_pulse, self._x_start = v[6], int(v[7]), v[8]
-        self.last_pulse = (int(v[9]), v[10])
-        self.last_d, self.f_p_floor, self._v_hat = v[11], v[12], v[13]
-        self._waited = int(v[14])
-        self.outcome, self.outcome_reason = int(v[15]), int(v[16])
-        self._stopped, self._e0, self._released = bool(v[17]), v[18], bool(v[19])
-        self._pred, self.sigma2, self.noise_rests = v[20], v[21], int(v[22])
-        self.trust_value, self.refusal = v[23], int(v[24])
-        self._anchor, self._lo, self._hi, self._sum, self._sum2 = v[25:30]
-        self._n, self._look, self._ring_n = int(v[30]), int(v[31]), int(v[32])
-        self._dir, self._turns = v[33], int(v[34])
-        self._ring = v[35:35 + NOISE_WINDOW]
+        self._x_prev, self._pulse_left = v[3], int(v[4])
+        self._f_pulse, self._n_pulse, self._x_start = v[5], int(v[6]), v[7]
+        self.last_pulse = (int(v[8]), v[9])
+        self.last_d, self.f_p_floor, self._v_hat = v[10], v[11], v[12]
+        self._waited = int(v[13])
+        self.outcome, self.outcome_reason = int(v[14]), int(v[15])
+        self._stopped, self._e0, self._released = bool(v[16]), v[17], bool(v[18])
+        self._pred, self.sigma2, self.noise_rests = v[19], v[20], int(v[21])
+        self.trust_value, self.refusal = v[22], int(v[23])
+        self._anchor, self._lo, self._hi, self._sum, self._sum2 = v[24:29]
+        self._n, self._look, self._ring_n = int(v[29]), int(v[30]), int(v[31])
+        self._dir, self._turns = v[32], int(v[33])
+        self._ring = v[34:34 + NOISE_WINDOW]
         self._update_rest_test()
 
     # -- shared pieces -----------------------------------------------------------------
@@ -604,8 +599,6 @@ class Controller:
         self._dir = 0.0
         self._turns = 0
         u = self.k_p * e - self.k_d * self._v_hat + math.copysign(self.settings.f_c_est, e)
-        if u != u:  # readings so far apart that the law has no value
-            return self._stop(Reason.INVALID_MEASUREMENT)
         f_max = self.settings.f_p_max
         return min(max(u, -f_max), f_max)
 

@@ -142,18 +142,12 @@ class PapwcController(Controller):
         """
         d_along = d if f_p > 0.0 else -d
         if self.guarded and d_along > 0.0 and d_along < FAR_LESS * self.predict(n, f_p):
-            self.f_p_floor = min(
-                max(self.f_p_floor, abs(f_p) * (1.0 + self.settings.floor_raise)),
-                self.settings.f_p_max,
-            )
+            self._raise_floor(f_p)
             return
         if not d_along > 0.0:
             mode = int(self.settings.floor_mode)
             if mode in (FLOOR_RAISE, FLOOR_RAISE_LEARN):
-                self.f_p_floor = min(
-                    max(self.f_p_floor, abs(f_p) * (1.0 + self.settings.floor_raise)),
-                    self.settings.f_p_max,
-                )
+                self._raise_floor(f_p)
             if mode == FLOOR_RAISE:
                 return
             d_along = 0.0
@@ -167,6 +161,11 @@ class PapwcController(Controller):
         if not (a1 > 0.0 and a2 > 0.0 and a2 / a1 < self.settings.f_p_max):
             # An estimate by which f_p_max could not move the mass is rejected.
             self.estimator.set_state(before)
+
+    def _raise_floor(self, f_p: float) -> None:
+        """Lift the amplitude floor to ``1 + floor_raise`` times |f_p| (N), at most f_p_max."""
+        self.f_p_floor = min(max(self.f_p_floor, abs(f_p) * (1.0 + self.settings.floor_raise)),
+                             self.settings.f_p_max)
 
     def estimates(self) -> dict[str, float]:
         """``b_hat`` at f_p_max (m/s**2) and ``f_c_hat`` = A2/A1 (N)."""

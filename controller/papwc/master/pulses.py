@@ -53,6 +53,8 @@ class Pulse:
     e: float
     #: Displacement to the next rest, m.
     d: float
+    #: Row of the trace where the displacement is read (the next rest).
+    end: int
 
 
 def pulses_of(trace: Trace) -> list[Pulse]:
@@ -73,7 +75,7 @@ def pulses_of(trace: Trace) -> list[Pulse]:
                 break
         forces = [f for f in u[k0:max(end, k0 + 1)] if f == f and f != 0.0]
         amp = max(forces, key=abs) if forces else 0.0
-        out.append(Pulse(k0, amp, trace.x_ref - x[k0], x[end] - x[k0]))
+        out.append(Pulse(k0, amp, trace.x_ref - x[k0], x[end] - x[k0], end))
     return out
 
 
@@ -116,9 +118,8 @@ class PulseBound:
         for trace in traces:
             worst = 0.0
             replay = None
-            pulses = pulses_of(trace)
             lows = trace.columns.get("f_low")
-            for i, p in enumerate(pulses):
+            for p in pulses_of(trace):
                 d = abs(p.d)
                 height = abs(p.amplitude)
                 f_low = height if lows is None else min(abs(lows[p.k]), height)
@@ -127,24 +128,11 @@ class PulseBound:
                 if ratio > 1.0 and ratio > worst and f_low > 0.0:
                     if replay is None:
                         replay = _Replay(self._plant, trace)
-                    end = _span_end(trace, pulses, i)
-                    small = replay.smallest(p.k, end, math.copysign(f_low, p.amplitude))
+                    small = replay.smallest(p.k, p.end, math.copysign(f_low, p.amplitude))
                     ratio = d / max(cheap, small)
                 worst = max(worst, ratio)
             out.append(worst)
         return out
-
-
-def _span_end(trace: Trace, pulses: list[Pulse], i: int) -> int:
-    """Row where pulse i's displacement is read (see :func:`pulses_of`)."""
-    k0 = pulses[i].k
-    n = len(trace)
-    k1 = pulses[i + 1].k if i + 1 < len(pulses) else n - 1
-    mode = trace.columns["mode"]
-    for k in range(k0 + 1, k1):
-        if mode[k] == Mode.COARSE:
-            return k
-    return k1
 
 
 class _Replay:
