@@ -17,7 +17,6 @@ from hypothesis import strategies as st
 from papwc.controllers import Mode, make_controller
 from papwc.controllers.base import (
     BAND_SIGMAS,
-    MODE_PERIODS,
     NOISE_DWELL,
     X_LIMIT,
     Outcome,
@@ -27,7 +26,13 @@ from papwc.controllers.settings import ControllerSettings
 from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration, summarize
 from papwc.master.pulses import PulseBound, pulse_ratio, pulses_of
 from papwc.master.slave import ControllerSlave
-from papwc.model.settings import CONTROLLER_OUTPUTS, OUTCOME_REASONS, OUTCOMES
+from papwc.model.settings import (
+    CONTROLLER_OUTPUTS,
+    MODE_PERIODS,
+    OUTCOME_REASONS,
+    OUTCOMES,
+    settings_problems,
+)
 
 T = 0.01
 KINDS = ("pwc", "papwc", "exact")
@@ -206,6 +211,16 @@ def test_a_known_mode_lengthens_the_dwell_and_caps_the_trust():
     assert ctl.trust() == 0.5
     rigid = make_controller(_settings("exact"), T)
     assert rigid._dwell == 1
+
+
+@pytest.mark.parametrize("f_mode", [5e-324, 1e-6, 2.4e-4])
+def test_a_mode_too_slow_for_a_bounded_dwell_is_refused_naming_it(f_mode):
+    # 2.5 periods must fit into 1e6 samples of T = 0.01 s: f_mode >= 2.5e-4 Hz (or 0)
+    found = settings_problems({"f_mode": f_mode, "T": 0.01})
+    assert [name for name, _ in found] == ["f_mode"]
+    assert found[0][1].startswith(f"f_mode = {f_mode!r} Hz: ") and ">= 0.00025 Hz" in found[0][1]
+    assert settings_problems({"f_mode": 2.5e-4, "T": 0.01}) == []
+    assert settings_problems({"f_mode": 0.0, "T": 0.01}) == []
 
 
 @pytest.mark.parametrize("kind", [

@@ -65,7 +65,7 @@ from __future__ import annotations
 
 import math
 
-from ..model.settings import OUTCOME_REASONS, OUTCOMES
+from ..model.settings import MODE_PERIODS, OUTCOME_REASONS, OUTCOMES
 from .settings import ControllerSettings
 
 #: Largest |position| read as one, m: beyond it (or NaN) a reading is invalid and the
@@ -95,9 +95,6 @@ PRECISION_MIN = 0.01
 TRUST_GROWTH = 2.0
 #: Relative prediction error up to which a pulse counts as predicted well.
 TRUST_GOOD = 0.2
-#: Dwell of rest detection on a machine with a known mode, in periods of it: not a whole
-#: number, so that pulses do not follow each other in step with the ringing they leave.
-MODE_PERIODS = 2.5
 #: Smallest trust.
 TRUST_MIN = 0.05
 #: Largest trust on a machine with a known mode (f_mode > 0).

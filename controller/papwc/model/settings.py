@@ -23,6 +23,7 @@ __all__ = [
     "FMU_DEFAULT_SENTINEL",
     "KIND_CODE",
     "KIND_CODES",
+    "MODE_PERIODS",
     "OUTCOMES",
     "OUTCOME_REASONS",
     "PULSE_CONTROLLER_VARIABLES",
@@ -31,6 +32,13 @@ __all__ = [
     "kind_from_code",
     "settings_problems",
 ]
+
+#: Dwell of rest detection on a machine with a known mode (``f_mode > 0``), in periods of
+#: it: not a whole number, so that pulses do not follow each other in step with the ringing
+#: they leave.
+MODE_PERIODS = 2.5
+#: Longest dwell of rest detection, sample intervals (``rest_samples`` and that of ``f_mode``).
+DWELL_MAX = 1_000_000
 
 #: Settings of a ``[[controller]]`` table, in the order of the FMU's value references.
 CONTROLLER_SETTINGS: tuple[Variable, ...] = (
@@ -90,7 +98,7 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "N.s/m", None, min=0.0, max=1e15, optional=True),
     Variable("rest_samples", "Sample intervals over which the measured position must stay "
              "within the rest band to count as at rest (the dwell; with rest_auto, at least "
-             "this)", "", 1, type="Integer", min=1, max=1_000_000),
+             "this)", "", 1, type="Integer", min=1, max=DWELL_MAX),
     Variable("rest_band", "Largest spread of the measured position over the dwell that still "
              "counts as at rest (with rest_auto, at least this)", "m", 0.0, min=0.0, max=1.0,
              nominal=1e-6),
@@ -115,8 +123,9 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "and the period of f_mode; with an ideal, noiseless encoder and f_mode = 0 they "
              "stay rest_band and rest_samples", "", True, type="Boolean"),
     Variable("f_mode", "Frequency of the machine's slowest mode (0 = rigid or unknown): rest "
-             "lasts at least 2.5 periods of it (the ringing a pulse leaves is waited out "
-             "before the pulse is judged) and the trust region stays at most 0.5", "Hz",
+             f"lasts at least {MODE_PERIODS:g} periods of it (the ringing a pulse leaves is "
+             "waited out before the pulse is judged) and the trust region stays at most 0.5",
+             "Hz",
              0.0, min=0.0, max=1e6, nominal=10.0),
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
              "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
@@ -152,6 +161,15 @@ def _t_p_max_at_least_T(values: Mapping[str, Any]) -> tuple[str, str] | None:
                        "(a pulse lasts a whole number of samples, at least one)")
 
 
+def _mode_dwell_bounded(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    f_mode, T = values["f_mode"], values["T"]
+    if f_mode == 0.0 or MODE_PERIODS <= DWELL_MAX * f_mode * T:
+        return None
+    return "f_mode", (f"f_mode = {f_mode!r} Hz: a rest lasts {MODE_PERIODS:g} periods of it, "
+                      f"more than {DWELL_MAX} samples of T = {T!r} s; must be 0 (no mode) or "
+                      f">= {MODE_PERIODS / (DWELL_MAX * T):g} Hz")
+
+
 #: Rules between settings (and the sample period ``T``, where it is given: the
 #: controller FMU's parameter, a scenario's ``[maneuver]`` field).
 CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
@@ -159,6 +177,7 @@ CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
     _below_f_p_max("f_p_min", strict=False),
     Constraint(("e_band", "tolerance"), _e_band_above_tolerance),
     Constraint(("t_p_max", "T"), _t_p_max_at_least_T),
+    Constraint(("f_mode", "T"), _mode_dwell_bounded),
 )
 
 #: The sample period as a parameter of PulseController.fmu.
