@@ -3,6 +3,7 @@ tables, reproducible archives, the bundled code, and build errors."""
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import subprocess
 import sys
@@ -15,7 +16,7 @@ from fmpy import read_model_description
 from fmpy.validation import validate_fmu
 
 import papwc
-from papwc.errors import BuildError
+from papwc.errors import BuildError, OutputError
 from papwc.fmubuild.fmus import FMUS, build_fmu, fmu_digest, guid, is_current, recipe
 from papwc.fmubuild.model_description import (
     complete_model_description,
@@ -92,6 +93,26 @@ def test_archives_are_written_in_a_fixed_order_with_fixed_times(fmu_dir: Path) -
             infos = archive.infolist()
         assert [i.filename for i in infos] == sorted(i.filename for i in infos)
         assert {i.date_time for i in infos} == {(1980, 1, 1, 0, 0, 0)}
+
+
+def test_a_full_disk_is_an_output_error_and_leaves_no_partial_fmu(tmp_path: Path,
+                                                                    monkeypatch) -> None:
+    import papwc.fmubuild.pythonfmu_build as pb
+
+    copyfile = pb.shutil.copyfile
+
+    def copy_then_fail(src, dst, **kw):
+        if not str(dst).endswith(".fmu.tmp"):  # the build's own copies
+            return copyfile(src, dst, **kw)
+        Path(dst).write_bytes(b"partial")
+        raise OSError(errno.ENOSPC, "No space left on device", str(dst))
+
+    monkeypatch.setattr(pb.shutil, "copyfile", copy_then_fail)
+    out = tmp_path / "out"
+    with pytest.raises(OutputError, match="cannot write PapwcTrivial.fmu into .*No space left"):
+        build_fmu("PapwcTrivial", out)
+    assert OutputError.exit_code == 1  # an operating-system error, not bad input
+    assert list(out.iterdir()) == []
 
 
 def test_unknown_fmu_name_is_a_build_error() -> None:

@@ -19,6 +19,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import re
 import shutil
@@ -28,7 +29,7 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from papwc.errors import BuildError
+from papwc.errors import BuildError, OutputError
 from papwc.fmubuild.model_description import complete_model_description, rewrite_fmu
 from papwc.model.variables import Variable
 
@@ -237,15 +238,17 @@ def build_pythonfmu(source: FmuSource, out_dir: Path) -> Path:
             raise BuildError(
                 f"{built.name} built from {script} is not valid: " + "; ".join(problems)
             )
+        target = out_dir / built.name
+        tmp = target.with_name(target.name + ".tmp")
         try:
             out_dir.mkdir(parents=True, exist_ok=True)
-            target = out_dir / built.name
-            tmp = target.with_name(target.name + ".tmp")
             shutil.copyfile(built, tmp)
             tmp.chmod(0o644)
             tmp.replace(target)
         except OSError as exc:
-            raise BuildError(f"cannot write {built.name} into {out_dir}: {exc}") from exc
+            with contextlib.suppress(OSError):
+                tmp.unlink(missing_ok=True)  # no partial copy left on a full disk
+            raise OutputError(f"cannot write {built.name} into {out_dir}: {exc}") from exc
         return target
     finally:
         # pythonfmu imports the model from the build folder; forget it so that an

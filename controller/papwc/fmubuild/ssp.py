@@ -46,7 +46,7 @@ import zipfile
 from pathlib import Path
 
 from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, settings_for_kind
-from papwc.errors import BuildError, PapwcError
+from papwc.errors import BuildError, OutputError, PapwcError
 from papwc.fmubuild.model_description import read_model_description
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_INPUTS, PLANT_OUTPUTS, SCENARIO_PLANT_FIELDS
 from papwc.model.settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, KIND_CODES
@@ -365,7 +365,7 @@ def build_closed_loop_ssp(
         fd, tmp_name = tempfile.mkstemp(prefix="ClosedLoop", suffix=".ssp", dir=out_dir)
         os.close(fd)
     except OSError as exc:
-        raise BuildError(f"cannot write ClosedLoop.ssp into {out_dir}: {exc}") from exc
+        raise OutputError(f"cannot write ClosedLoop.ssp into {out_dir}: {exc}") from exc
     try:
         with zipfile.ZipFile(tmp_name, "w", zipfile.ZIP_DEFLATED) as archive:
             archive.writestr("SystemStructure.ssd", ssd_bytes)
@@ -375,5 +375,5 @@ def build_closed_loop_ssp(
         os.replace(tmp_name, target)
     except OSError as exc:
         Path(tmp_name).unlink(missing_ok=True)
-        raise BuildError(f"cannot write {target}: {exc}") from exc
+        raise OutputError(f"cannot write {target}: {exc}") from exc
     return target
