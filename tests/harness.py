@@ -327,6 +327,7 @@ class ScriptedController:
         self.outcome = 0  # papwc.controllers.Outcome.ACTIVE
         self.outcome_reason = 0
         self.revision = 0
+        self.idle_samples = 0  # never only counts a sample
 
     def reset(self) -> None:
         pass

@@ -192,3 +192,25 @@ def test_delayed_force_is_not_mistaken_for_a_pulse_that_did_not_move():
         assert floors and all(d > 0.0 for d, _ in floors), timing
         assert all(floor == settings.f_c_est for _, floor in floors), timing
         assert abs(summarize(trace, settings.tolerance)["final_error_m"]) <= settings.tolerance
+
+
+@pytest.mark.parametrize("kind", CONTROLLER_KINDS)
+def test_samples_only_counted_give_the_state_of_samples_fully_taken(kind):
+    """A settled controller only counts an unchanged reading (``idle_samples``); the state,
+    the outputs and what follows a disturbance are those of taking every sample in full
+    (a state round trip after each sample makes the controller take the next in full)."""
+    s = ControllerSettings(kind=kind, tolerance=1e-6)
+    x_ref = 1e-3
+    readings = [x_ref] * 60 + [x_ref + 5e-6] * 40 + [x_ref + 5e-6 + 1e-7] * 20
+    lazy, full = make_controller(s, 0.01), make_controller(s, 0.01)
+    u_lazy, u_full, counted = [], [], 0
+    for k, x in enumerate(readings):
+        u_lazy.append(lazy.update(k * 0.01, x, x_ref))
+        counted = max(counted, lazy.idle_samples)
+        u_full.append(full.update(k * 0.01, x, x_ref))
+        full.set_state(full.state())
+        assert full.idle_samples == 0
+    assert counted >= 40  # the shortcut was taken while settled ...
+    assert u_lazy == u_full
+    assert lazy.state() == full.state()  # ... and state() counts it in
+    assert (lazy.mode, lazy.outcome, lazy.pulses) == (full.mode, full.outcome, full.pulses)

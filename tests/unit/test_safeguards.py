@@ -365,6 +365,7 @@ class Scripted:
         self.mode = Mode.SETTLED
         self.pulses = 0
         self.revision = 0
+        self.idle_samples = 0
         self.f_low = f_low
         self.outcome = Outcome.ACTIVE
         self.outcome_reason = Reason.NONE

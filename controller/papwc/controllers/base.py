@@ -134,6 +134,10 @@ class Reason:
 
 _O_SETTLED = Outcome.SETTLED
 _M_SETTLED = Mode.SETTLED
+_M_COARSE = Mode.COARSE
+_M_PULSE = Mode.PULSE
+_M_WAIT = Mode.WAIT
+_NAN = math.nan
 
 
 class Controller:
@@ -189,6 +193,9 @@ class Controller:
     def reset(self) -> None:
         """Start a new maneuver from rest; learned estimates are kept."""
         self.mode = Mode.SETTLED  # at rest; decided anew at the first sample
+        #: Samples only counted since the state was last brought up to date (see update).
+        self.idle_samples = 0
+        self._idle_x = self._idle_ref = math.nan
         self.pulses = 0
         self._first = True
         self._x_prev = math.nan
@@ -236,22 +243,33 @@ class Controller:
         float
             Force u, N, held until the next sample.
         """
+        if x_meas == self._idle_x and x_ref == self._idle_ref:
+            # Settled, and the reading and reference those of the last sample: the
+            # sample is only counted (see _catch_up).
+            self.idle_samples += 1
+            return 0.0
+        if self.idle_samples:
+            self._catch_up()
         if self._stopped:
             return 0.0
-        if not (abs(x_meas) <= X_LIMIT and abs(x_ref) <= X_LIMIT):  # also NaN
+        if not (-X_LIMIT <= x_meas <= X_LIMIT and -X_LIMIT <= x_ref <= X_LIMIT):  # also NaN
             return self._stop(Reason.INVALID_MEASUREMENT)
         if (self.outcome == _O_SETTLED and self.mode == _M_SETTLED and x_meas == self._anchor
                 and self._lo == self._hi and self.sigma2 == 0.0
                 and self._n >= self._dwell and self._n >= NOISE_DWELL
                 and abs(x_ref - x_meas) <= self.settings.tolerance):
             # Settled and the reading unchanged: the steps below would only count it
-            # (the same state, the same result, less work).
+            # (the same state, the same result, less work), and so would they for every
+            # further sample with this reading and reference.
             self._n += 1
             self._v_hat = 0.0
             self._x_prev = x_meas
             self._ring[self._ring_n % NOISE_WINDOW] = x_meas
             self._ring_n += 1
+            self._idle_x = x_meas
+            self._idle_ref = x_ref
             return 0.0
+        self._idle_x = _NAN
         if self._first:
             at_rest = True
             self._first = False
@@ -262,18 +280,35 @@ class Controller:
         else:
             dx = x_meas - self._x_prev
             self._v_hat = dx / self.T
-            if x_meas == self._anchor and self._lo == self._hi:  # the reading unchanged
+            lo, hi = self._lo, self._hi
+            if x_meas == self._anchor and lo == hi:  # the reading unchanged
                 self._n += 1
                 at_rest = self._n > self._dwell
             else:
-                at_rest = self._rest(x_meas)
+                # The run of readings within the band grows, or a new one starts here.
+                if x_meas < lo:
+                    lo = x_meas
+                if x_meas > hi:
+                    hi = x_meas
+                if hi - lo > self._band:
+                    if self._n > NOISE_DWELL and self._sum2 > 0.0:
+                        self._end_run()
+                    self._start_run(x_meas)
+                    at_rest = False
+                else:
+                    self._lo, self._hi = lo, hi
+                    dev = x_meas - self._anchor
+                    self._sum += dev
+                    self._sum2 += dev * dev
+                    self._n += 1
+                    at_rest = self._n > self._dwell
         self._x_prev = x_meas
 
         if self._pulse_left > 0:
             self._pulse_left -= 1
             return self._f_pulse
         mode = self.mode
-        if mode != Mode.COARSE or self._released:
+        if mode != _M_COARSE or self._released:
             # Force-free: a mass moves one way only, so readings that turn back twice show
             # noise (or a vibration); until the noise is measured, equal readings show a
             # rest only when many in a row are.
@@ -289,10 +324,10 @@ class Controller:
                     at_rest = self._n > NOISE_DWELL and self._lo == self._hi
                 if not at_rest and self._ring_n >= NOISE_WINDOW:
                     at_rest = self._quiet_window()
-        if mode == Mode.PULSE:
-            self.mode = mode = Mode.WAIT
+        if mode == _M_PULSE:
+            self.mode = mode = _M_WAIT
             self._waited = 0
-        if mode == Mode.WAIT:
+        if mode == _M_WAIT:
             self._waited += 1
             if self._n_pulse > 0:
                 # A pulse response moves the mass one way only, so "moved" is read off
@@ -309,7 +344,7 @@ class Controller:
             elif not at_rest:
                 return 0.0
         elif not at_rest:
-            if mode == Mode.SETTLED:
+            if mode == _M_SETTLED:
                 return 0.0
             e = x_ref - x_meas
             if self._released:
@@ -322,6 +357,16 @@ class Controller:
 
         # At rest: settle, pulse, or coarse feedback.
         return self._decide(x_ref)
+
+    def _catch_up(self) -> None:
+        """Count the idle samples into the rest (what update would have done for each)."""
+        k, x = self.idle_samples, self._idle_x
+        self.idle_samples = 0
+        self._n += k
+        ring, start = self._ring, self._ring_n
+        for i in range(min(k, NOISE_WINDOW)):
+            ring[(start + i) % NOISE_WINDOW] = x
+        self._ring_n = start + k
 
     def estimates(self) -> dict[str, float]:
         """Current estimates for recording: at least ``b_hat`` (m/s**2) and ``f_c_hat`` (N)."""
@@ -402,24 +447,6 @@ class Controller:
         self._sum = self._sum2 = 0.0
         self._n = 1
         self._look = 0
-
-    def _rest(self, x: float) -> bool:
-        """Add a reading other than the run's unchanged one; whether the mass counts as at rest.
-
-        (A reading equal to all of the run's is counted in :meth:`update` itself.)
-        """
-        lo = x if x < self._lo else self._lo
-        hi = x if x > self._hi else self._hi
-        if hi - lo > self._band:
-            self._end_run()
-            self._start_run(x)
-            return False
-        self._lo, self._hi = lo, hi
-        dx = x - self._anchor
-        self._sum += dx
-        self._sum2 += dx * dx
-        self._n += 1
-        return self._n > self._dwell
 
     def _x_hat(self) -> float:
         """Mean of the readings of the present run (the position at rest), m."""
@@ -558,6 +585,8 @@ class Controller:
     # -- state -------------------------------------------------------------------------
     def state(self) -> list[float]:
         """Everything that evolves, as a flat list of floats (FMU state, serialization)."""
+        if self.idle_samples:
+            self._catch_up()
         return [
             float(self.mode), float(self.pulses), float(self._first), self._x_prev,
             float(self._pulse_left), self._f_pulse, float(self._n_pulse),
@@ -573,6 +602,8 @@ class Controller:
     def set_state(self, values: list[float]) -> None:
         """Restore a state returned by :meth:`state`."""
         self.revision += 1  # the estimates (and f_low) may differ
+        self.idle_samples = 0
+        self._idle_x = self._idle_ref = math.nan
         v = [float(q) for q in values]
         self.mode, self.pulses, self._first = int(v[0]), int(v[1]), bool(v[2])
         self._x_prev, self._pulse_left = v[3], int(v[4])
@@ -601,5 +632,8 @@ class Controller:
 
     def width_samples(self, t_p: float) -> int:
         """Pulse width t_p (s) rounded up to whole samples, within [1, n_max]."""
-        n = int(math.ceil(t_p / self.T - 1e-9)) if math.isfinite(t_p) else self.n_max
-        return min(max(n, 1), self.n_max)
+        n_max = self.n_max
+        if not math.isfinite(t_p):
+            return n_max
+        n = math.ceil(t_p / self.T - 1e-9)
+        return 1 if n < 1 else n_max if n > n_max else n

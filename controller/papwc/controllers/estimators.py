@@ -119,33 +119,38 @@ class Rls2:
         Returns the a-priori error xi of Eq. (16), m. A non-finite step leaves the
         estimate and P unchanged; P is kept symmetric positive definite.
         """
-        p = self.P
+        (p00, p01), (p10, p11) = self.P
+        phi0, phi1 = phi
+        a0, a1 = self.a
         lam = self.lam
-        pi0 = p[0][0] * phi[0] + p[0][1] * phi[1]  # Eq. (13)
-        pi1 = p[1][0] * phi[0] + p[1][1] * phi[1]
-        denom = lam + phi[0] * pi0 + phi[1] * pi1
-        xi = d - (self.a[0] * phi[0] + self.a[1] * phi[1])  # Eq. (16)
-        if not (math.isfinite(denom) and denom > 0.0 and math.isfinite(xi)):
+        pi0 = p00 * phi0 + p01 * phi1  # Eq. (13)
+        pi1 = p10 * phi0 + p11 * phi1
+        denom = lam + phi0 * pi0 + phi1 * pi1
+        xi = d - (a0 * phi0 + a1 * phi1)  # Eq. (16)
+        isfinite = math.isfinite
+        if not (isfinite(denom) and denom > 0.0 and isfinite(xi)):
             return 0.0
         k0 = pi0 / denom  # Eq. (15)
         k1 = pi1 / denom
         # Eq. (14): P = (P - K pi^T) / lambda, written symmetric (pi = P phi, P = P^T).
-        p00 = (p[0][0] - k0 * pi0) / lam
-        p11 = (p[1][1] - k1 * pi1) / lam
-        p01 = 0.5 * ((p[0][1] - k0 * pi1) + (p[1][0] - k1 * pi0)) / lam
-        a0 = self.a[0] + k0 * xi  # Eq. (17)
-        a1 = self.a[1] + k1 * xi
-        if not all(math.isfinite(q) for q in (p00, p11, p01, a0, a1)):
+        q00 = (p00 - k0 * pi0) / lam
+        q11 = (p11 - k1 * pi1) / lam
+        q01 = 0.5 * ((p01 - k0 * pi1) + (p10 - k1 * pi0)) / lam
+        a0 = a0 + k0 * xi  # Eq. (17)
+        a1 = a1 + k1 * xi
+        if not (isfinite(q00) and isfinite(q11) and isfinite(q01) and isfinite(a0)
+                and isfinite(a1)):
             return 0.0
         if not self.update_covariance:
             pass  # P stays P(0): Eq. (14) is not applied
-        elif p00 > 0.0 and p11 > 0.0 and p00 * p11 - p01 * p01 > 0.0:
-            self.P = [[p00, p01], [p01, p11]]
+        elif q00 > 0.0 and q11 > 0.0 and q00 * q11 - q01 * q01 > 0.0:
+            self.P = [[q00, q01], [q01, q11]]
         else:
             # Rounding has cost P its definiteness: restart the covariance.
             self.P = [[self.delta_inv, 0.0], [0.0, self.delta_inv]]
         (lo0, hi0), (lo1, hi1) = self.bounds
-        self.a = [min(max(a0, lo0), hi0), min(max(a1, lo1), hi1)]
+        self.a = [lo0 if a0 < lo0 else hi0 if a0 > hi0 else a0,
+                  lo1 if a1 < lo1 else hi1 if a1 > hi1 else a1]
         return xi
 
     def state(self) -> list[float]:

@@ -129,7 +129,9 @@ class PapwcController(Controller):
     def predict(self, n: int, f_p: float) -> float:
         """Eq. (4) with Eq. (12): ``(A1*f_p**2 - A2*f_p)*(n*T)**2`` at |f_p| (>= 0), m."""
         t = n * self.T
-        return max(self.b_hat(abs(f_p)), 0.0) * t * t
+        a1, a2 = self.estimator.a
+        f = abs(f_p)
+        return max(a1 * f * f - a2 * f, 0.0) * t * t  # b_hat(|f_p|), Eq. (12)
 
     def learn(self, n: int, f_p: float, d: float) -> None:
         """Eq. (13)-(18) with the pulse's displacement ``d`` along its direction.

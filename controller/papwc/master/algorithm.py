@@ -59,6 +59,7 @@ class FixedStepAlgorithm:
         self.timing = timing
         self._after: Callable[[Slave], None] | None = None
         self._step: Callable[[float], None] = lambda t: None
+        self._run: Callable[..., None] = lambda k0, k1, t0, done, at: None
 
     def setup(
         self,
@@ -97,10 +98,28 @@ class FixedStepAlgorithm:
             body = [line for tr in transfers for line in tr] + [line for st in steps
                                                                 for line in st]
         # One function made of the plan's statements, as dataclasses makes its methods:
-        # a step costs no loop over slaves and no test of what the plan holds.
-        source = "def step(t):\n" + "".join(f"    {line}\n" for line in body or ["pass"])
+        # a step costs no loop over slaves and no test of what the plan holds. ``run``
+        # is the same statements in a loop over steps k0 <= k < k1 from t0, calling
+        # each of ``done(k, t_(k+1))`` after a step and putting a failed step's k in
+        # ``at[0]``; the parts are its local names (default arguments).
+        lines = body or ["pass"]
+        namespace["FmuError"] = FmuError
+        local = ", ".join(f"{name}={name}" for name in namespace)
+        source = ("def step(t):\n" + "".join(f"    {line}\n" for line in lines)
+                  + f"def run(k0, k1, t0, done, at, {local}):\n"
+                  + "    for k in range(k0, k1):\n"
+                  + "        t = t0 + k * h\n"
+                  + "        try:\n"
+                  + "".join(f"            {line}\n" for line in lines)
+                  + "        except FmuError:\n"
+                  + "            at[0] = k\n"
+                  + "            raise\n"
+                  + "        t = t0 + (k + 1) * h\n"
+                  + "        for f in done:\n"
+                  + "            f(k, t)\n")
         exec(source, namespace)  # noqa: S102 - the statements are made here, from indexes
         self._step = namespace["step"]
+        self._run = namespace["run"]
 
     def step(self, t: float) -> None:
         """One communication step from ``t``: transfer, step every slave, call ``after_step``.
@@ -112,9 +131,16 @@ class FixedStepAlgorithm:
         """
         self._step(t)
 
-    @property
-    def step_function(self) -> Callable[[float], None]:
-        """The prepared ``step(t)`` itself (what :meth:`step` calls), for a caller's loop."""
-        return self._step
+    def run(self, k0: int, k1: int, t0: float, done: Sequence[Callable[[int, float], None]],
+            at: list[int]) -> None:
+        """Steps ``k0 <= k < k1`` from ``t_k = t0 + k*h``: what :meth:`step` does for each,
+        then each of ``done(k, t_(k+1))``.
+
+        Raises
+        ------
+        FmuError
+            From the slave whose step failed; ``at[0]`` is then that step's k.
+        """
+        self._run(k0, k1, t0, done, at)
 
 

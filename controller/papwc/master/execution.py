@@ -143,23 +143,20 @@ class Execution:
             When a slave's step fails; observers are told (``step_failed``) first,
             and ``k`` stays at the failed step.
         """
-        step = self.algorithm.step_function
+        if n <= 0:
+            return
         complete = [o.step_complete for o in self.observers]
-        t0, h = self.start_time, self.algorithm.step_size
-        k = self.k
-        for k in range(self.k, self.k + n):
-            t = t0 + k * h
-            try:
-                step(t)
-            except FmuError:
-                self.k = k
-                for o in self.observers:
-                    o.step_failed(k, t)
-                raise
-            t_next = t0 + (k + 1) * h
-            for step_complete in complete:
-                step_complete(k, t_next)
-        self.k = k + 1 if n > 0 else self.k
+        t0 = self.start_time
+        at = [self.k]
+        try:
+            self.algorithm.run(self.k, self.k + n, t0, complete, at)
+        except FmuError:
+            k = self.k = at[0]
+            t = t0 + k * self.algorithm.step_size
+            for o in self.observers:
+                o.step_failed(k, t)
+            raise
+        self.k += n
 
     def finish(self) -> None:
         """Tell the observers the run has ended."""

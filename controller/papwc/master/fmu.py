@@ -166,6 +166,7 @@ class FmuSlave:
         self.unzip_dir = str(unzip_dir)
         self._can_state = bool(self.md.coSimulation.canGetAndSetFMUstate)
         self._refresh: Callable[[], None] = lambda: None
+        self._real_read: tuple[Any, ...] | None = None
         self._load()
         self._instantiate()
 
@@ -214,6 +215,7 @@ class FmuSlave:
         self._fn["DoStep"] = bare(cast(dll.fmi2DoStep, c_void_p).value)
         self._do_step = self._fn["DoStep"]
         self._h = c_double(0.0)
+        self._t = c_double(0.0)  # the communication point, passed by value
 
     def _instantiate(self) -> None:
         self._call("fmi2Instantiate", lambda: self._fmu.instantiate(
@@ -297,8 +299,10 @@ class FmuSlave:
             buf = (_C_TYPES[kind] * n)()
             reads.append((self._fn["Get" + kind], vr, c_size_t(n), buf, positions, kind))
         comp, check = self._c, self._check
+        self._real_read = None
         if len(reads) == 1 and reads[0][5] == "Real":
             get, vr, n, buf, _, _ = reads[0]
+            self._real_read = (get, vr, n, buf)  # what do_step reads itself
 
             def refresh() -> None:
                 status = get(comp, vr, n, buf)
@@ -425,10 +429,20 @@ class FmuSlave:
         step_size = self._h
         if step_size.value != h:
             step_size.value = h
-        status = self._do_step(self._c, c_double(t), step_size, 1)
+        t_c = self._t
+        t_c.value = t
+        status = self._do_step(self._c, t_c, step_size, 1)
         if status > 1:
             self._check("fmi2DoStep", status)
-        self._refresh()
+        read = self._real_read
+        if read is None:
+            self._refresh()
+            return
+        get, vr, n, buf = read  # _refresh, inline: only Reals are watched
+        status = get(self._c, vr, n, buf)
+        if status > 1:
+            self._check("fmi2GetReal", status)
+        self.values = buf[:]
 
     def _free_snapshot(self) -> None:
         if self._snapshot is not None and self._fmu is not None:

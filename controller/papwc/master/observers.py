@@ -131,24 +131,26 @@ class TraceObserver:
         """The trace's columns from the rows kept (``last_u``: the force of the last row)."""
         plant_rows, ctrl_rows = self._plant_rows, self._controller_rows
         n = len(ctrl_rows)
-        rows = plant_rows[:n]
         T, t0, x_ref = self.trace.T, self._t0, self.trace.x_ref
         cols = self.trace.columns
         cols["k"] = list(range(n))
         cols["t"] = [t0 + k * T for k in range(n)]
+        # The rows transposed at once: one tuple per watched variable (all rows have
+        # the length of the slave's watch list).
+        plant = list(zip(*plant_rows[:n], strict=True)) if n else None
+        ctrl = list(zip(*ctrl_rows, strict=True)) if n else None
         for name, i in zip(_STATE, self._state, strict=True):
-            cols[name] = [r[i] for r in rows]
+            cols[name] = list(plant[i]) if n else []
         cols["e"] = [x_ref - x for x in cols["x"]]
         iu = self._u
-        if self._delayed:
-            u = [self._controller_start[iu]] + [r[iu] for r in ctrl_rows[:n - 1]]
-        else:
-            u = [r[iu] for r in ctrl_rows]
+        u = list(ctrl[iu]) if n else []
+        if self._delayed and n:
+            u = [self._controller_start[iu]] + u[:-1]
         if last_u is not None:
             u[-1] = last_u
         cols["u"] = u
         for name, i in zip(_CONTROLLER, self._ctrl, strict=True):
-            cols[name] = [r[i] for r in ctrl_rows]
+            cols[name] = list(ctrl[i]) if n else []
 
 
 class VariableObserver:

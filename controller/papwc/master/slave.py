@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
+from functools import partial
 from types import SimpleNamespace
 from typing import Any, Protocol
 
@@ -126,12 +127,13 @@ class _WatchedAttributes:
         shown = [(j, self._watched.index(n)) for j, n in enumerate(names) if n in self._watched]
         if len(names) == 1:
             (name,) = names
-            index = shown[0][1] if shown else None
+            if not shown:
+                return partial(setattr, self, name)  # set_one below without the index
+            index = shown[0][1]
 
             def set_one(value: Any) -> None:
                 setattr(self, name, value)
-                if index is not None:
-                    self.values[index] = value
+                self.values[index] = value
 
             return set_one
 
@@ -272,6 +274,12 @@ class ControllerSlave(_WatchedAttributes):
     ``outcome_reason`` and the controller's estimates (``b_hat``, ``f_c_hat``,
     ...) are outputs. ``restart`` starts a new
     maneuver from rest with what the controller learned.
+
+    Besides ``update``, ``reset`` and ``estimates``, the controller has the
+    attributes ``mode``, ``pulses``, ``f_low``, ``outcome``,
+    ``outcome_reason``, ``revision`` (changes when the estimates may have) and
+    ``idle_samples`` (grows when a sample changed nothing but a count: the
+    outputs are then those of the sample before).
     """
 
     def __init__(self, controller: Controller, name: str = "controller") -> None:
@@ -328,15 +336,21 @@ class ControllerSlave(_WatchedAttributes):
 
     def do_step(self, t: float, h: float) -> None:
         """Advance from ``t`` over ``h`` (s) and refresh :attr:`values`."""
-        self.u = self.controller.update(t, self.x_meas, self.x_ref)
-        if self.controller.revision != self._revision:
+        controller = self.controller
+        idle = controller.idle_samples
+        self.u = controller.update(t, self.x_meas, self.x_ref)
+        if controller.idle_samples > idle:
+            return  # a sample only counted: every output is the one of the last sample
+        if controller.revision != self._revision:
             self._refresh_estimates()
-        self._refresh()
+        self.values = self._read(self)  # _refresh, inline
 
     def _refresh_estimates(self) -> None:
-        self.estimates = SimpleNamespace(
-            **{**self.controller.estimates(), "f_low": self.controller.f_low})
-        self._revision = self.controller.revision
+        controller = self.controller
+        values = self.estimates.__dict__
+        values.update(controller.estimates())
+        values["f_low"] = controller.f_low
+        self._revision = controller.revision
 
     def close(self) -> None:
         """Nothing to release."""
