@@ -143,3 +143,38 @@ def test_iterations_restart_the_plant_and_carry_the_estimates(friction_plant_fmu
 def test_the_plant_fmu_and_the_physics_offer_the_same_variables(friction_plant_fmu: Path):
     with FmuSlave(friction_plant_fmu) as fmu:
         assert fmu.variables() == PhysicsSlave().variables()
+
+
+def test_an_input_holding_its_value_is_not_sent_again_and_is_after_a_restart(
+        friction_plant_fmu):
+    """FmuSlave does not repeat fmi2SetReal for a value the input holds (FMI keeps an input
+    until it is set); after a restart (a restored state) or a setter of the same input, it
+    sends it again: the FMU's own ``u`` is the force each step asked for."""
+    from papwc.master import FmuSlave
+
+    slave = FmuSlave(friction_plant_fmu)
+    try:
+        slave.set_start_values(TABLE_1)
+        iu, ix = slave.watch(["u", "x"])
+        set_a, set_b = slave.input_setter(["u"]), slave.input_setter(["u"])
+        slave.initialize()
+        forces = [140.0, 140.0, 0.0, 0.0, -0.0, 140.0]
+        seen = []
+        for k, u in enumerate(forces):
+            set_a(u)
+            slave.do_step(k * 0.01, 0.01)
+            seen.append(slave.values[iu])
+        assert seen == forces
+        assert math.copysign(1.0, seen[4]) == -1.0  # -0.0 is sent, not taken for 0.0
+        x_first = slave.values[ix]
+        slave.restart()  # the FMU's u is 0 again
+        set_a(140.0)
+        slave.do_step(0.0, 0.01)
+        assert slave.values[iu] == 140.0 and slave.values[ix] > 0.0
+        set_b(0.0)  # another setter of u
+        set_a(140.0)
+        slave.do_step(0.01, 0.01)
+        assert slave.values[iu] == 140.0
+        assert x_first > 0.0
+    finally:
+        slave.close()

@@ -107,8 +107,8 @@ class FixedStepAlgorithm:
         local = ", ".join(f"{name}={name}" for name in namespace)
         source = ("def step(t):\n" + "".join(f"    {line}\n" for line in lines)
                   + f"def run(k0, k1, t0, done, at, {local}):\n"
+                  + "    t = t0 + k0 * h\n"
                   + "    for k in range(k0, k1):\n"
-                  + "        t = t0 + k * h\n"
                   + "        try:\n"
                   + "".join(f"            {line}\n" for line in lines)
                   + "        except FmuError:\n"

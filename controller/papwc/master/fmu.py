@@ -11,6 +11,7 @@ or another tool's.
 from __future__ import annotations
 
 import itertools
+import math
 import os
 import shutil
 import tempfile
@@ -167,6 +168,9 @@ class FmuSlave:
         self._can_state = bool(self.md.coSimulation.canGetAndSetFMUstate)
         self._refresh: Callable[[], None] = lambda: None
         self._real_read: tuple[Any, ...] | None = None
+        #: What a Real input was last set to, by name: [value, sign of value] or [NaN]
+        #: (not known); a setter of that input alone sends a value only if it differs.
+        self._held: dict[str, list[float]] = {}
         self._load()
         self._instantiate()
 
@@ -260,7 +264,16 @@ class FmuSlave:
         self._start.update(values)
         self._free_snapshot()
 
+    def _held_cell(self, name: str) -> list[float]:
+        return self._held.setdefault(name, [math.nan])
+
+    def _forget_inputs(self) -> None:
+        """The inputs' values are no longer known (a new instance, a restored state)."""
+        for held in self._held.values():
+            held[:] = [math.nan]
+
     def _set_now(self, values: Mapping[str, Any]) -> None:
+        self._forget_inputs()
         for name, value in values.items():
             var = self.vars[name]
             vr = (c_uint * 1)(var.valueReference)
@@ -345,18 +358,27 @@ class FmuSlave:
             set_real = self._fn["SetReal"]
             if n == 1 and len(shown) <= 1:
                 index = shown[0][1] if shown else None
+                held = self._held_cell(names[0])
 
                 def set_one(value: Any) -> None:
+                    if value == held[0] and (value != 0.0
+                                             or math.copysign(1.0, value) == held[1]):
+                        return  # the input holds it: FMI keeps an input until it is set
                     buf[0] = value
                     status = set_real(comp, vr, n_c, buf)
                     if status > 1:
                         check("fmi2SetReal", status)
+                    held[:] = value, math.copysign(1.0, value)
                     if index is not None:
                         self.values[index] = value
 
                 return set_one
 
+            cells = [self._held_cell(name) for name in names]
+
             def set_reals(*values: Any) -> None:
+                for held in cells:  # (each setter of one of them sends anew)
+                    held[:] = [math.nan]
                 buf[:] = values
                 status = set_real(comp, vr, n_c, buf)
                 if status > 1:
@@ -384,6 +406,7 @@ class FmuSlave:
             refuse invalid parameters that way).
         """
         self.time = float(start_time)
+        self._forget_inputs()
         self._call("fmi2SetupExperiment", lambda: self._fmu.setupExperiment(
             startTime=start_time))
         self._set_now(self._start)
@@ -407,6 +430,7 @@ class FmuSlave:
         With ``restart_input``, that input is incremented instead: the FMU starts
         anew keeping what it has learned.
         """
+        self._forget_inputs()
         if self.restart_input is not None:
             self.time = float(start_time)
             self._restarts += 1

@@ -108,9 +108,17 @@ class TraceObserver:
     def initialized(self, t: float) -> None:
         """Start the rows with the plant's initial values at ``t`` (s)."""
         self._t0 = t
-        self._plant_rows = [self.plant.values]
-        self._controller_rows = []
+        self._plant_rows = plant_rows = [self.plant.values]
+        self._controller_rows = controller_rows = []
         self._controller_start = self.controller.values
+        plant, controller = self.plant, self.controller
+        keep_plant, keep_controller = plant_rows.append, controller_rows.append
+
+        def step_complete(k: int, t: float) -> None:
+            keep_controller(controller.values)
+            keep_plant(plant.values)
+
+        self.step_complete = step_complete  # the method below, bound to these rows
 
     def step_complete(self, k: int, t: float) -> None:
         """Keep the controller's values of sample k and the plant's at t_(k+1)."""
