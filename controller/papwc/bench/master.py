@@ -59,7 +59,8 @@ def master_step_cost(context: BenchContext) -> list[Row]:
     verdict = "met" if ratio <= MASTER_RATIO_GOAL else "MISSED"
     context.notes.append(
         f"{rounds} interleaved rounds of {iterations} iterations x {maneuver.n_steps} steps; "
-        "the master reads x, v, x_meas and records the trace; fmpy sets u, steps and reads "
+        "the master reads x, v, x_meas, records the trace and sets u only when it changes "
+        "(an FMU keeps an input until it is set); fmpy sets u, steps and reads "
         f"x; ratio = median of the per-round ratios; goal {verdict}"
     )
     return [
