@@ -1,0 +1,25 @@
+"""papwc.analysis.ringing: what pulses do to the flexible drive of scenarios/realism.toml."""
+
+from __future__ import annotations
+
+import re
+
+from papwc.analysis import ringing
+
+
+def test_a_flexible_drive_has_a_smallest_move_and_keeps_ringing(capsys):
+    ringing.main()
+    out = capsys.readouterr().out
+    moves = [float(v) for v in re.findall(r"moves +([-0-9.]+) um", out)]
+    rings = [float(v) for v in re.findall(r"leaves +([-0-9.]+) N ringing", out)]
+    n_heights = len(ringing.HEIGHTS)
+    assert len(moves) == n_heights + 1 + len(ringing.WAITS) and len(rings) == n_heights + 1
+    one_period = moves[:n_heights]
+    # below the breakaway nothing moves; the first height that moves jumps by > 10 um
+    assert one_period[0] == 0.0 and min(m for m in one_period if m > 0.0) > 10.0
+    assert one_period == sorted(one_period)
+    # every pulse that moved leaves the drive ringing; one sample leaves more than a period
+    assert all(r > 1.0 for r in rings) and rings[-1] > 2.0 * max(rings[:n_heights])
+    # the same pulse again moves from nothing to nearly what the first moved, by the wait
+    again = moves[n_heights + 1:]
+    assert min(again) == 0.0 and max(again) > 0.8 * one_period[ringing.HEIGHTS.index(75.0)]
