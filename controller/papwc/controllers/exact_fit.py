@@ -1,0 +1,325 @@
+"""The fit of the exact-model controller: m, f_c and c of Eq. (3) and a bracket of f_s.
+
+:class:`PulseModelEstimator` keeps a history of pulses (samples, height, measured
+displacement) and fits Eq. (3) (:func:`papwc.model.pulse.pulse_displacement`) to it by
+a small regularized, weighted least-squares problem (Levenberg-Marquardt); the
+controller is :class:`papwc.controllers.exact.ExactController`.
+
+Standard library only (bundled into the controller FMU).
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..model.pulse import pulse_displacement
+from .base import Z_DECIDE
+
+__all__ = ["PulseModelEstimator"]
+
+#: A fit from a fresh start replaces the one continued from the current estimate only if
+#: its cost is below this fraction of the other's.
+_RESTART_GAIN = 0.01
+#: Where a pulse that did not move contradicts the f_s bracket, the new upper end of it
+#: relative to the new lower end.
+_F_S_EXPAND = 1.1
+#: Relative standard deviation of a measured displacement (model and rounding).
+_SIGMA_REL = 1e-6
+#: Smallest standard deviation of a measured displacement, m.
+_SIGMA_MIN = 1e-15
+#: Prior standard deviations of log(m), log(f_c) and c/c_scale.
+_SIGMA_PRIOR = (0.5, 0.5, 1.0)
+#: Bounds of the fit variables: log(m/m_est), log(f_c/f_c_est), c/c_scale.
+_THETA_BOUNDS = ((-3.0, 3.0), (-3.0, 3.0), (0.0, 50.0))
+#: Smallest relative error assumed for a planned pulse (model and rounding).
+_MISFIT_MIN = 1e-9
+
+
+def _solve3(a: list[list[float]], b: list[float]) -> list[float] | None:
+    """Solution of a 3x3 linear system by Gaussian elimination with pivoting (None if singular)."""
+    m = [row[:] + [b[i]] for i, row in enumerate(a)]
+    for col in range(3):
+        piv = max(range(col, 3), key=lambda r: abs(m[r][col]))
+        if not (abs(m[piv][col]) > 0.0 and math.isfinite(m[piv][col])):
+            return None
+        m[col], m[piv] = m[piv], m[col]
+        for r in range(col + 1, 3):
+            f = m[r][col] / m[col][col]
+            for k in range(col, 4):
+                m[r][k] -= f * m[col][k]
+    x = [0.0, 0.0, 0.0]
+    for r in (2, 1, 0):
+        s = m[r][3] - sum(m[r][k] * x[k] for k in range(r + 1, 3))
+        x[r] = s / m[r][r]
+    return x if all(math.isfinite(v) for v in x) else None
+
+
+class PulseModelEstimator:
+    """Estimates of m, f_c, c (Eq. (3)) and a bracket of f_s from a history of pulses.
+
+    The fit minimizes, over ``theta = (log(m/m_est), log(f_c/f_c_est), c/c_scale)``,
+    ::
+
+        sum_i ((d_model(f_i, n_i*T; theta) - d_i) / sigma_i)**2
+            + sum_j ((theta_j - theta0_j) / sigma_prior_j)**2
+
+    with ``sigma_i = 1e-6*d_i + x_resolution + meas_sigma`` (m; ``meas_sigma``
+    the standard deviation of a displacement measured with a noisy encoder, set
+    by the controller), by Levenberg-Marquardt steps
+    from the current estimate. The prior term keeps the directions that the
+    pulses do not determine (e.g. all pulses of one shape) at the initial
+    estimates, and every estimate stays inside fixed bounds.
+
+    Parameters
+    ----------
+    m_est : float
+        Initial estimate of the mass, kg (> 0).
+    f_c_est : float
+        Initial estimate of the Coulomb friction, N (> 0).
+    c_est : float
+        Initial estimate of the viscous damping, N.s/m (>= 0).
+    T : float
+        Sample period, s.
+    f_p_max : float
+        Largest pulse height, N (upper end of the f_s bracket).
+    history : int
+        Number of pulses kept for the fit (>= 1).
+    x_resolution : float
+        Resolution of the position measurement, m (>= 0; 0 for an ideal one).
+    iterations : int
+        Levenberg-Marquardt iterations per new pulse.
+    """
+
+    def __init__(
+        self,
+        m_est: float,
+        f_c_est: float,
+        c_est: float,
+        T: float,
+        f_p_max: float,
+        history: int = 16,
+        x_resolution: float = 0.0,
+        iterations: int = 12,
+    ) -> None:
+        self.m_est = float(m_est)
+        self.f_c_est = float(f_c_est)
+        self.T = float(T)
+        self.f_p_max = float(f_p_max)
+        self.c_scale = self.m_est / (10.0 * self.T)
+        self.size = int(history)
+        self.x_resolution = float(x_resolution)
+        self.iterations = int(iterations)
+        #: Standard deviation of a measured displacement from the encoder noise, m.
+        self.meas_sigma = 0.0
+        self.theta0 = (0.0, 0.0, self._clip(2, float(c_est) / self.c_scale))
+        self.theta = list(self.theta0)
+        #: Highest height known not to move the mass and lowest known to move it, N.
+        self.f_s_lo = 0.0
+        self.f_s_hi = self.f_p_max
+        #: Pulses (n, |f_p| in N, displacement along f_p in m), oldest first.
+        self.pulses: list[tuple[int, float, float]] = []
+        #: Relative misfit of the model over the history beyond the measurement
+        #: resolution (root mean square, at least ``_MISFIT_MIN``).
+        self.rel_misfit = _MISFIT_MIN
+
+    # -- parameters --------------------------------------------------------------------
+    @staticmethod
+    def _clip(j: int, value: float) -> float:
+        lo, hi = _THETA_BOUNDS[j]
+        return min(max(value, lo), hi)
+
+    def params(self, theta: list[float] | tuple[float, ...] | None = None) -> tuple[float, ...]:
+        """``(m, f_c, c)`` in kg, N, N.s/m for ``theta`` (default: the current estimate)."""
+        th = self.theta if theta is None else theta
+        return (
+            self.m_est * math.exp(th[0]),
+            self.f_c_est * math.exp(th[1]),
+            self.c_scale * th[2],
+        )
+
+    @property
+    def m_hat(self) -> float:
+        """Estimated mass, kg."""
+        return self.params()[0]
+
+    @property
+    def f_c_hat(self) -> float:
+        """Estimated Coulomb friction, N."""
+        return self.params()[1]
+
+    @property
+    def c_hat(self) -> float:
+        """Estimated viscous damping, N.s/m."""
+        return self.params()[2]
+
+    def displacement(self, f_p: float, n: int) -> float:
+        """Predicted displacement of a pulse of height f_p (N) and n samples, Eq. (3), m."""
+        m, f_c, c = self.params()
+        return pulse_displacement(f_p, n * self.T, m, f_c, c)
+
+    def _theta2_max(self) -> float:
+        # f_c <= f_s < f_s_hi: a height that moved the mass lies above f_c.
+        cap = math.log(self.f_s_hi * (1.0 - 1e-9) / self.f_c_est)
+        return max(min(_THETA_BOUNDS[1][1], cap), _THETA_BOUNDS[1][0])
+
+    # -- observations ------------------------------------------------------------------
+    def observe(self, n: int, f_p: float, d: float) -> None:
+        """Take one pulse: n samples of height f_p (N, signed), displacement d (m, signed).
+
+        A pulse whose displacement along f_p is zero or negative (at most
+        ``3*meas_sigma``, with a noisy encoder) did not break the mass away: it
+        raises ``f_s_lo`` (and, if that reaches ``f_s_hi``, the breakaway force
+        is sought anew up to ``1.1*f_s_lo``). A pulse that
+        moved lowers ``f_s_hi``, joins the history and the model is refitted.
+        Non-finite or meaningless observations are ignored.
+        """
+        if not (math.isfinite(f_p) and math.isfinite(d)) or f_p == 0.0 or n < 1:
+            return
+        f = min(abs(f_p), self.f_p_max)
+        d_along = d if f_p > 0.0 else -d
+        if d_along > Z_DECIDE * self.meas_sigma:
+            if f <= 1.01 * self.f_c_est * math.exp(_THETA_BOUNDS[1][0]):
+                return  # far below any Coulomb friction the fit allows: not credible
+            self.f_s_hi = min(self.f_s_hi, f)
+            if self.f_s_lo >= self.f_s_hi:
+                self.f_s_lo = 0.0  # contradicting observations: forget the lower bound
+            self._remember(int(n), f, d_along)
+            self.fit()
+        else:
+            self.f_s_lo = max(self.f_s_lo, f)
+            if self.f_s_lo >= self.f_s_hi:
+                # The breakaway force here is above where the mass moved before (it
+                # varies along the way): look for it just above the new lower bound.
+                self.f_s_hi = min(self.f_p_max, _F_S_EXPAND * self.f_s_lo)
+                self.f_s_lo = min(self.f_s_lo, self.f_s_hi * (1.0 - 1e-6))
+
+    def _remember(self, n: int, f: float, d: float) -> None:
+        """Append a pulse; when full, drop the oldest of the same width (else the oldest)."""
+        if self.size <= 0:
+            return
+        if len(self.pulses) >= self.size:
+            same = [i for i, p in enumerate(self.pulses) if p[0] == n]
+            drop = same[0] if len(same) >= 2 else 0
+            del self.pulses[drop]
+        self.pulses.append((n, f, d))
+
+    # -- the fit -----------------------------------------------------------------------
+    def _residuals(self, theta: list[float]) -> list[float] | None:
+        m, f_c, c = self.params(theta)
+        out = []
+        for n, f, d in self.pulses:
+            sigma = _SIGMA_REL * d + self.x_resolution + self.meas_sigma + _SIGMA_MIN
+            try:
+                r = (pulse_displacement(f, n * self.T, m, f_c, c) - d) / sigma
+            except (ValueError, OverflowError, ZeroDivisionError):
+                # A difference quotient at theta_3 = 0 evaluates c < 0, where coasting
+                # may never end (log of a negative number): no residual there.
+                return None
+            if not math.isfinite(r):
+                return None
+            out.append(r)
+        for j in range(3):
+            out.append((theta[j] - self.theta0[j]) / _SIGMA_PRIOR[j])
+        return out
+
+    def fit(self) -> None:
+        """Levenberg-Marquardt iterations over the history, the best of three starts.
+
+        From the current estimate, and from the initial one and the initial one
+        with ``c = c_scale``, whose result is taken only when it explains the
+        pulses far better (cost below ``_RESTART_GAIN`` times the other's): a fit
+        that ran into a bound (``c = 0`` after a few pulses of one shape) is not
+        kept there by the next pulses. With an encoder (``x_resolution > 0``)
+        or noise measured (``meas_sigma > 0``) the fit is only continued: a
+        fresh start would chase the rounding and the noise.
+        """
+        t0 = list(self.theta0)
+        best = self._lm(list(self.theta))
+        exact_sensor = self.meas_sigma == 0.0 and self.x_resolution == 0.0
+        for start in (t0, [t0[0], t0[1], 1.0]) if exact_sensor else ():
+            found = self._lm(start)
+            if found is not None and (best is None or found[1] < _RESTART_GAIN * best[1]):
+                best = found
+        if best is not None:
+            self.theta = best[0]
+        self.rel_misfit = self._misfit()
+
+    def _lm(self, theta: list[float]) -> tuple[list[float], float] | None:
+        """Levenberg-Marquardt from theta: the estimate reached and its cost (None: none)."""
+        theta = [self._clip(j, theta[j]) for j in range(3)]
+        theta[1] = min(theta[1], self._theta2_max())
+        r = self._residuals(theta)
+        if r is None:
+            return None
+        cost = sum(q * q for q in r)
+        mu = 1e-3
+        h = 1e-6
+        for _ in range(self.iterations):
+            jac: list[list[float]] = []
+            for j in range(3):
+                tp, tm = list(theta), list(theta)
+                tp[j] += h
+                tm[j] -= h
+                rp, rm = self._residuals(tp), self._residuals(tm)
+                if rp is None or rm is None:
+                    return theta, cost
+                jac.append([(a - b) / (2.0 * h) for a, b in zip(rp, rm, strict=True)])
+            jtj = [[sum(a * b for a, b in zip(jac[i], jac[k], strict=True)) for k in range(3)]
+                   for i in range(3)]
+            jtr = [sum(a * b for a, b in zip(jac[i], r, strict=True)) for i in range(3)]
+            improved = False
+            moved = 0.0
+            for _ in range(12):
+                lhs = [[jtj[i][k] + (mu * jtj[i][i] if i == k else 0.0) for k in range(3)]
+                       for i in range(3)]
+                step = _solve3(lhs, [-g for g in jtr])
+                if step is None:
+                    mu *= 10.0
+                    continue
+                trial = [self._clip(j, theta[j] + step[j]) for j in range(3)]
+                trial[1] = min(trial[1], self._theta2_max())
+                r_trial = self._residuals(trial)
+                if r_trial is not None:
+                    cost_trial = sum(q * q for q in r_trial)
+                    if cost_trial < cost:
+                        moved = max(abs(a - b) for a, b in zip(trial, theta, strict=True))
+                        theta, r, cost = trial, r_trial, cost_trial
+                        mu = max(mu / 10.0, 1e-12)
+                        improved = True
+                        break
+                mu *= 10.0
+            if not improved or moved < 1e-14:
+                break
+        return theta, cost
+
+    def _misfit(self) -> float:
+        """Root mean square of the relative model errors beyond the resolution.
+
+        Each pulse's term is capped at 1; the result is at least ``_MISFIT_MIN``.
+        """
+        if not self.pulses:
+            return _MISFIT_MIN
+        m, f_c, c = self.params()
+        total = 0.0
+        for n, f, d in self.pulses:
+            err = (abs(pulse_displacement(f, n * self.T, m, f_c, c) - d) - self.x_resolution
+                   - Z_DECIDE * self.meas_sigma)
+            total += min(max(err, 0.0) / d, 1.0) ** 2
+        value = math.sqrt(total / len(self.pulses))
+        return max(value, _MISFIT_MIN) if math.isfinite(value) else 1.0
+
+    # -- state -------------------------------------------------------------------------
+    def state(self) -> list[float]:
+        """Everything that evolves, as a flat list of ``7 + 3*history`` floats."""
+        out = [*self.theta, self.f_s_lo, self.f_s_hi, self.rel_misfit, float(len(self.pulses))]
+        for i in range(self.size):
+            out.extend(self.pulses[i] if i < len(self.pulses) else (0.0, 0.0, 0.0))
+        return [float(v) for v in out]
+
+    def set_state(self, values: list[float]) -> None:
+        """Restore a state returned by :meth:`state`."""
+        v = [float(q) for q in values]
+        self.theta = v[0:3]
+        self.f_s_lo, self.f_s_hi, self.rel_misfit = v[3], v[4], v[5]
+        count = int(v[6])
+        self.pulses = [(int(v[7 + 3 * i]), v[8 + 3 * i], v[9 + 3 * i]) for i in range(count)]
