@@ -20,18 +20,33 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import shutil
-import tempfile
-import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from papwc.analysis.claim_runs import _Runs
 from papwc.analysis.paper import d_min
-from papwc.controllers import Mode
-from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings
-from papwc.master import RunResult, Trace, summarize
+from papwc.analysis.readings import (
+    KNOWN_BEST,
+    KNOWN_READINGS,
+    SEARCH_GRID,
+    Reading,
+    search_range_text,
+)
+from papwc.analysis.run_metrics import (
+    FIRST_PULSES,
+    FIXED,
+    ROLES,
+    RunMetrics,
+    adaptation_per_pulse,
+    pulse_list,
+    role_of,
+    run_metrics,
+    sign_switches,
+)
+from papwc.controllers.settings import SETTINGS_BY_NAME
+from papwc.master import RunResult
 from papwc.model.pulse import b_coulomb
 
 __all__ = [
@@ -60,141 +75,10 @@ CLAIMS_COLUMNS = ["claim", "metric", "paper", "default_value", "reproduced_by_de
 
 #: The paper's error band of its PAPWC simulation, m (Section 4).
 PAPER_TOLERANCE = 2e-5
-#: Pulses over which the adaptation speed is measured (from the start of iteration 1).
-FIRST_PULSES = 5
 #: "Much faster": at least this ratio of the adaptation speeds.
 MUCH_FASTER = 2.0
 #: Relative tolerance of "peak-to-peak = d_min".
 D_MIN_RTOL = 0.01
-#: Fraction of an iteration (its end) in which a limit cycle is looked for.
-WINDOW = 0.25
-
-#: The four controllers of the paper's Section 4.
-ROLES = ("pwc_bounded", "pwc_unbounded", "papwc_bounded", "papwc_unbounded")
-#: Suffix of the role of a PAPWC run without covariance update.
-FIXED = "_fixed_covariance"
-
-
-# --- what the claims read from a run ---------------------------------------------------------
-
-
-def pulse_list(trace: Trace) -> list[tuple[int, int, float]]:
-    """The pulses of an iteration: (first sample, width in samples, height in N)."""
-    u, mode = trace.column("u"), trace.column("mode")
-    out: list[tuple[int, int, float]] = []
-    i, n = 0, len(u)
-    while i < n:
-        f = u[i]
-        if mode[i] == Mode.PULSE and f and not math.isnan(f):
-            j = i
-            while j < n and mode[j] == Mode.PULSE and u[j] == f:
-                j += 1
-            out.append((i, j - i, f))
-            i = j
-        else:
-            i += 1
-    return out
-
-
-def sign_switches(trace: Trace) -> int:
-    """How often the sign of the pulse height changes from one pulse to the next."""
-    signs = [f > 0.0 for _, _, f in pulse_list(trace)]
-    return sum(1 for a, b in zip(signs, signs[1:], strict=False) if a != b)
-
-
-def adaptation_per_pulse(trace: Trace, n_pulses: int = FIRST_PULSES) -> float:
-    """Mean |change of b_hat| per pulse over the first ``n_pulses`` pulses, m/s**2.
-
-    The change of pulse k is b_hat when pulse k+1 starts (the estimate it was
-    planned with) minus b_hat when pulse k started; after the last pulse, the
-    value at the end of the iteration. NaN without pulses.
-    """
-    b_hat = trace.column("b_hat")
-    starts = [k for k, _, _ in pulse_list(trace)]
-    if not starts:
-        return math.nan
-    used = min(n_pulses, len(starts))
-    values = [b_hat[starts[i]] if i < len(starts) else b_hat[-1] for i in range(used + 1)]
-    return sum(abs(b - a) for a, b in zip(values, values[1:], strict=False)) / used
-
-
-@dataclass(frozen=True)
-class RunMetrics:
-    """What the claims read from one controller's run (last iteration unless said).
-
-    Attributes
-    ----------
-    label : str
-        Controller label.
-    error : str
-        Why the run stopped early ("" if every iteration ran).
-    iterations : int
-        Iterations recorded.
-    final_error_m : float
-        x_ref - x at the end, m.
-    signs : str
-        The signs of the pulses, one character each (``+`` or ``-``).
-    limit_cycle : bool
-        Pulses of both signs in the last quarter of the iteration.
-    cycle_p2p_m : float
-        Peak-to-peak of x over that quarter, m.
-    window_widths : tuple of int
-        Widths (samples) of the pulses that start in that quarter, sorted, unique.
-    switches : int
-        Sign changes between consecutive pulses.
-    b_hat : float
-        Estimate at the end, m/s**2.
-    adaptation : float
-        Mean |change of b_hat| per pulse over the first pulses of iteration 1, m/s**2.
-    """
-
-    label: str
-    error: str
-    iterations: int
-    final_error_m: float
-    signs: str
-    limit_cycle: bool
-    cycle_p2p_m: float
-    window_widths: tuple[int, ...]
-    switches: int
-    b_hat: float
-    adaptation: float
-
-    @property
-    def pulses(self) -> int:
-        """Pulses in the last iteration."""
-        return len(self.signs)
-
-
-def run_metrics(result: RunResult) -> RunMetrics:
-    """The metrics of a run that the claims read."""
-    if not result.traces:
-        return RunMetrics(result.label, result.error or "no iteration recorded", 0, math.nan,
-                          "", False, math.nan, (), 0, math.nan, math.nan)
-    last = result.traces[-1]
-    s = summarize(last, result.settings.tolerance, WINDOW)
-    pulses = pulse_list(last)
-    start = len(last) - max(2, int(len(last) * WINDOW))
-    return RunMetrics(
-        label=result.label,
-        error=result.error,
-        iterations=len(result.traces),
-        final_error_m=s["final_error_m"],
-        signs="".join("+" if f > 0.0 else "-" for _, _, f in pulses),
-        limit_cycle=bool(s["limit_cycle"]),
-        cycle_p2p_m=s["cycle_p2p_m"],
-        window_widths=tuple(sorted({w for k, w, _ in pulses if k >= start})),
-        switches=sign_switches(last),
-        b_hat=s["b_hat"],
-        adaptation=adaptation_per_pulse(result.traces[0]),
-    )
-
-
-def role_of(settings: ControllerSettings) -> str | None:
-    """The role of a controller (``pwc_bounded``, ...), None for other kinds."""
-    if settings.kind not in ("pwc", "papwc"):
-        return None
-    return f"{settings.kind}_{'bounded' if math.isfinite(settings.t_p_max) else 'unbounded'}"
 
 
 # --- the claims -------------------------------------------------------------------------------
@@ -372,237 +256,6 @@ CLAIMS: tuple[Claim, ...] = (
           ("papwc_bounded", "papwc_unbounded", "papwc_bounded" + FIXED,
            "papwc_unbounded" + FIXED), _fewer_switches),
 )
-
-
-# --- readings ---------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Reading:
-    """Values of settings that replace the scenario's, for every controller of a kind.
-
-    ``pwc`` and ``papwc`` are ``((setting name, value), ...)`` with
-    scenario-file names. The empty reading is the scenario itself.
-    """
-
-    pwc: tuple[tuple[str, Any], ...] = ()
-    papwc: tuple[tuple[str, Any], ...] = ()
-
-    def overrides(self, kind: str) -> dict[str, Any]:
-        """The replaced settings of controllers of ``kind``."""
-        return dict(getattr(self, kind, ()))
-
-    @property
-    def changes(self) -> int:
-        """Number of settings replaced."""
-        return len(self.pwc) + len(self.papwc)
-
-    def text(self) -> str:
-        """E.g. ``"pwc: K_c = 0.6; papwc: delta_inv = 100"`` (``"default"`` if empty)."""
-        parts = []
-        for kind in ("pwc", "papwc"):
-            items = getattr(self, kind)
-            if items:
-                parts.append(f"{kind}: " + ", ".join(f"{k} = {_value_text(v)}"
-                                                     for k, v in items))
-        return "; ".join(parts) or "default"
-
-    def relative_to(self, defaults: Mapping[str, Mapping[str, Any]]) -> Reading:
-        """The reading without the settings that equal ``defaults[kind][name]``."""
-        return Reading(*(tuple((k, v) for k, v in getattr(self, kind)
-                               if defaults.get(kind, {}).get(k, _MISSING) != v)
-                         for kind in ("pwc", "papwc")))
-
-
-_MISSING = object()
-
-
-def _value_text(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, float):
-        return f"{v:g}"
-    return str(v)
-
-
-def apply_reading(settings: ControllerSettings, overrides: Mapping[str, Any]
-                  ) -> ControllerSettings:
-    """``settings`` with the given settings (scenario-file names) replaced."""
-    return dataclasses.replace(
-        settings, **{SETTINGS_BY_NAME[k].attribute: v for k, v in overrides.items()})
-
-
-#: The readings ``papwc reproduce --readings`` searches: per kind, each setting and its
-#: values (the product of all). The paper's values and the defaults are among them.
-SEARCH_GRID: dict[str, tuple[tuple[str, tuple[Any, ...]], ...]] = {
-    "pwc": (
-        ("K_c", tuple(round(0.30 + 0.02 * i, 2) for i in range(36))),
-        ("regressor", (0, 1)),
-        ("F_inv0", (1e-5, 1e5)),
-    ),
-    "papwc": (
-        ("K_c", tuple(round(0.50 + 0.05 * i, 2) for i in range(11))),
-        ("delta_inv", tuple(float(f"1e{k}") for k in range(-7, 6))),
-        ("lambda", (1.0, 0.98, 0.95)),
-        ("regressor", (0, 1)),
-        ("floor_mode", (0, 1, 2)),
-    ),
-}
-
-#: For each claim that scenarios/paper.toml does not reproduce, the reading that does, as
-#: :func:`search_readings` chose it on that scenario with FrictionPlant.fmu (None: none
-#: in SEARCH_GRID). ``papwc reproduce`` runs them again; the unbounded PWC's 2T cycle,
-#: reproduced by the scenario's K_c = 0.6, keeps the reading for scenarios outside the
-#: window of about 0.56-0.64 in which it appears.
-KNOWN_READINGS: dict[str, Reading | None] = {
-    "unbounded_2t_cycle": Reading(pwc=(("K_c", 0.6),)),
-    "papwc_adapts_faster": Reading(papwc=(("delta_inv", 100.0),)),
-    "unbounded_two_pulses": Reading(papwc=(("delta_inv", 100.0),)),
-    "unbounded_b_hat_above_b": Reading(papwc=(("delta_inv", 1e-7),)),
-    "covariance_update_fewer_switches": Reading(papwc=(("K_c", 0.75),)),
-}
-
-#: The reading that reproduced the most claims at once in that search (7 of 8, all but
-#: b_hat > b; with the paper's lambda = 1, delta_inv = 100 reproduces 6).
-KNOWN_BEST = Reading(papwc=(("K_c", 0.95), ("delta_inv", 1e4), ("lambda", 0.98)))
-
-
-def search_range_text(grid: Mapping[str, Sequence[tuple[str, Sequence[Any]]]] | None = None
-                      ) -> str:
-    """The readings of ``grid`` (default :data:`SEARCH_GRID`) in words."""
-    parts = []
-    for kind, axes in (SEARCH_GRID if grid is None else grid).items():
-        axis_texts = []
-        for name, values in axes:
-            if name == "K_c" and len(values) > 3:
-                step = round(values[1] - values[0], 4)
-                axis_texts.append(f"K_c {values[0]:.2f}…{values[-1]:.2f} step {step:g}")
-            else:
-                axis_texts.append(f"{name} " + "/".join(_value_text(v) for v in values))
-        parts.append(f"{kind}: " + " × ".join(axis_texts))
-    return "; ".join(parts)
-
-
-# --- running ----------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class _Task:
-    """One controller run: a role under the overrides of its kind."""
-
-    role: str
-    overrides: tuple[tuple[str, Any], ...]
-
-
-def _role_settings(scenario, role: str) -> tuple[ControllerSettings, str] | None:
-    base = role[:-len(FIXED)] if role.endswith(FIXED) else role
-    for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
-        if role_of(settings) == base:
-            if role.endswith(FIXED):
-                return (apply_reading(settings, {"update_covariance": False}),
-                        label + "_fixed_covariance")
-            return settings, label
-    return None
-
-
-def _roles(scenario) -> list[str]:
-    present = {role_of(s) for s in scenario.controllers}
-    out = [r for r in ROLES if r in present]
-    return out + [r + FIXED for r in out if r.startswith("papwc")]
-
-
-def _run_task(scenario, task: _Task, plant: str, fmu: str | None,
-              unzip_dir: str | None) -> RunMetrics:
-    from papwc.master import run_controller
-    from papwc.runner import make_plant
-
-    settings, label = _role_settings(scenario, task.role)
-    settings = apply_reading(settings, dict(task.overrides))
-    problems = settings.problems()
-    if problems:
-        return run_metrics(RunResult(label, settings, error=problems[0][1]))
-    slave = make_plant(scenario, plant, fmu, unzip_dir)
-    try:
-        return run_metrics(run_controller(slave, settings, scenario.maneuver, label))
-    except Exception as exc:  # noqa: BLE001 - a failing run is a claim not reproduced
-        return run_metrics(RunResult(label, settings, error=f"{type(exc).__name__}: {exc}"))
-    finally:
-        slave.close()
-
-
-def _run_batch(scenario, tasks: list[_Task], plant: str, fmu: str | None,
-               unzip_dir: str | None) -> list[RunMetrics]:
-    return [_run_task(scenario, t, plant, fmu, unzip_dir) for t in tasks]
-
-
-class _Runs:
-    """Runs of the scenario under readings, each run once (FMU extracted once)."""
-
-    def __init__(self, scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
-                 known: Mapping[str, RunMetrics] | None = None) -> None:
-        self.scenario = scenario
-        self.plant = plant
-        self.fmu = None if fmu is None else str(fmu)
-        self.roles = _roles(scenario)
-        self.cache: dict[_Task, RunMetrics] = {}
-        for role, metrics in (known or {}).items():
-            self.cache[_Task(role, ())] = metrics
-        self._unzip: str | None = None
-
-    def tasks(self, reading: Reading) -> dict[str, _Task]:
-        """The run of every role under ``reading``."""
-        return {role: _Task(role, tuple(sorted(reading.overrides(role.split("_")[0]).items())))
-                for role in self.roles}
-
-    def metrics(self, reading: Reading) -> dict[str, RunMetrics]:
-        """Metrics of every role under ``reading`` (running what is not cached)."""
-        tasks = self.tasks(reading)
-        self.run([t for t in tasks.values() if t not in self.cache])
-        return {role: self.cache[t] for role, t in tasks.items()}
-
-    def run(self, tasks: Sequence[_Task], workers: int = 1) -> None:
-        """Run ``tasks`` (in ``workers`` processes if more than one) into the cache."""
-        tasks = list(dict.fromkeys(t for t in tasks if t not in self.cache))
-        if not tasks:
-            return
-        unzip = self._unzip_dir()
-        if workers <= 1:
-            for t in tasks:
-                self.cache[t] = _run_task(self.scenario, t, self.plant, self.fmu, unzip)
-            return
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        from papwc.battery.engines import mp_context
-
-        size = max(1, min(32, len(tasks) // (8 * workers) or 1))
-        batches = [tasks[i:i + size] for i in range(0, len(tasks), size)]
-        done, start, next_report = 0, time.perf_counter(), 0.1
-        with ProcessPoolExecutor(max_workers=workers, mp_context=mp_context()) as pool:
-            futures = {pool.submit(_run_batch, self.scenario, b, self.plant, self.fmu, unzip): b
-                       for b in batches}
-            for fut in as_completed(futures):
-                for t, m in zip(futures[fut], fut.result(), strict=True):
-                    self.cache[t] = m
-                done += len(futures[fut])
-                if done >= next_report * len(tasks) or done == len(tasks):
-                    print(f"  {done}/{len(tasks)} runs ({time.perf_counter() - start:.0f} s)",
-                          flush=True)
-                    next_report = done / len(tasks) + 0.1
-
-    def _unzip_dir(self) -> str | None:
-        if self.plant != "fmu" or self._unzip is not None:
-            return self._unzip
-        from fmpy import extract
-
-        self._unzip = tempfile.mkdtemp(prefix="papwc_claims_")
-        extract(self.fmu, unzipdir=self._unzip)
-        return self._unzip
-
-    def close(self) -> None:
-        """Remove the extracted FMU."""
-        if self._unzip is not None:
-            shutil.rmtree(self._unzip, ignore_errors=True)
-            self._unzip = None
 
 
 def claim_context(scenario) -> Context:
