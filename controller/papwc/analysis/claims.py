@@ -23,7 +23,7 @@ import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from papwc.analysis.claim_runs import _Runs
 from papwc.analysis.paper import d_min
@@ -48,6 +48,9 @@ from papwc.analysis.run_metrics import (
 from papwc.controllers.settings import SETTINGS_BY_NAME
 from papwc.master import RunResult
 from papwc.model.pulse import b_coulomb
+
+if TYPE_CHECKING:
+    from papwc.scenario import Scenario
 
 __all__ = [
     "CLAIMS",
@@ -258,7 +261,7 @@ CLAIMS: tuple[Claim, ...] = (
 )
 
 
-def claim_context(scenario) -> Context:
+def claim_context(scenario: Scenario) -> Context:
     """b and d_min of Eq. (19) for the scenario's plant, PWC amplitude and sample period."""
     pwc = [s for s in scenario.controllers if s.kind == "pwc"]
     f_p = pwc[0].f_p_max if pwc else SETTINGS_BY_NAME["f_p_max"].default
@@ -351,7 +354,7 @@ def _rows_failing(default, rows: list[ClaimRow]):
             yield claim, row
 
 
-def evaluate_claims(scenario, results: Iterable[RunResult] = (), plant: str = "fmu",
+def evaluate_claims(scenario: Scenario, results: Iterable[RunResult] = (), plant: str = "fmu",
                     fmu: str | os.PathLike | None = None,
                     readings: Mapping[str, Reading | None] | None = None,
                     best: Reading | None = None) -> ClaimsTable:
@@ -402,7 +405,7 @@ def evaluate_claims(scenario, results: Iterable[RunResult] = (), plant: str = "f
         runs.close()
 
 
-def grid_readings(scenario, kind: str,
+def grid_readings(scenario: Scenario, kind: str,
                   axes: Sequence[tuple[str, Sequence[Any]]]) -> list[Reading]:
     """Every combination of the values of ``axes`` as a reading of ``kind``.
 
@@ -420,7 +423,7 @@ def grid_readings(scenario, kind: str,
     return list(dict.fromkeys(out))
 
 
-def search_readings(scenario, results: Iterable[RunResult] = (), plant: str = "fmu",
+def search_readings(scenario: Scenario, results: Iterable[RunResult] = (), plant: str = "fmu",
                     fmu: str | os.PathLike | None = None, workers: int = 1,
                     grid: Mapping[str, Sequence[tuple[str, Sequence[Any]]]] | None = None,
                     ) -> ClaimsTable:
@@ -563,7 +566,7 @@ def claims_markdown(table: ClaimsTable, searched: bool = False) -> str:
     return "\n".join(lines) + "\n"
 
 
-def write_claims(out: Path, scenario, results: Sequence[RunResult],
+def write_claims(out: Path, scenario: Scenario, results: Sequence[RunResult],
                  fmu: str | os.PathLike, search: bool = False,
                  workers: int | None = None) -> str:
     """Evaluate the claims on the plant FMU, write ``claims.csv`` into ``out``.
