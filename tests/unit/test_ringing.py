@@ -4,11 +4,13 @@ from __future__ import annotations
 
 import re
 
+import pytest
+
 from papwc.analysis import ringing
 
 
 def test_a_flexible_drive_has_a_smallest_move_and_keeps_ringing(capsys):
-    ringing.main()
+    ringing.main([])
     out = capsys.readouterr().out
     moves = [float(v) for v in re.findall(r"moves +([-0-9.]+) um", out)]
     rings = [float(v) for v in re.findall(r"leaves +([-0-9.]+) N ringing", out)]
@@ -23,3 +25,11 @@ def test_a_flexible_drive_has_a_smallest_move_and_keeps_ringing(capsys):
     # the same pulse again moves from nothing to nearly what the first moved, by the wait
     again = moves[n_heights + 1:]
     assert min(again) == 0.0 and max(again) > 0.8 * one_period[ringing.HEIGHTS.index(75.0)]
+
+
+def test_an_argument_is_refused_in_one_line(capsys):
+    with pytest.raises(SystemExit) as stop:
+        ringing.main(["--pulses", "3"])
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1].endswith("error: unrecognized arguments: --pulses 3")

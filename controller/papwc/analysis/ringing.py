@@ -15,7 +15,9 @@ Run ``python -m papwc.analysis.ringing``; it prints one line per pulse.
 
 from __future__ import annotations
 
+import argparse
 import tomllib
+from collections.abc import Sequence
 
 from papwc.model.dynamics import Plant
 from papwc.resources import scenario_file
@@ -52,8 +54,15 @@ def spring_force(plant: Plant) -> float:
     return plant.flexible.coupling(plant.x, plant.v, plant.x_d, plant.v_d)
 
 
-def main() -> None:
-    """Print the table's moves and the ringing left, pulse by pulse."""
+def main(argv: Sequence[str] | None = None) -> None:
+    """Print the table's moves and the ringing left, pulse by pulse.
+
+    Takes no arguments (``argv``, default ``sys.argv[1:]``); any given is refused (exit 2).
+    """
+    argparse.ArgumentParser(
+        prog="python -m papwc.analysis.ringing",
+        description="what one-period pulses do to the flexible drive of scenarios/realism.toml",
+    ).parse_args(argv)
     params, f_mode, T = flexible_plant()
     n = max(1, round(1.0 / (f_mode * T)))
     rest = round(SETTLE / T)
