@@ -1,12 +1,13 @@
 """Run a scenario's controllers against the plant and write what ``papwc run`` writes.
 
 Results are on disk as soon as they exist: :class:`ResultsFolder` writes each
-controller's traces, then its rows of ``summary.csv``, as the controller
-finishes (every file atomically), and the plots at the end. While a run is
-under way, and after one that was interrupted or failed, the folder holds a
-file ``INCOMPLETE`` that says what is missing; it is removed once everything
-is written. A new run into a used folder first removes the files an earlier
-run wrote there (``summary.csv``, ``trace_*_it*.csv``, the plots,
+controller's traces, then its rows of ``summary.csv`` (and of ``pulses.csv``:
+every pulse with its no-runaway bound), as the controller finishes (every file
+atomically), and the plots at the end. While a run is under way, and after one
+that was interrupted or failed, the folder holds a file ``INCOMPLETE`` that
+says what is missing; it is removed once everything is written. A new run into
+a used folder first removes the files an earlier run wrote there
+(``summary.csv``, ``pulses.csv``, ``trace_*_it*.csv``, the plots,
 ``INCOMPLETE``), nothing else.
 """
 
@@ -31,6 +32,11 @@ SUMMARY_COLUMNS = [
     "controller", "kind", "t_p_max", "iteration", "final_error_m", "pulses", "settle_time_s",
     "limit_cycle", "cycle_p2p_m", "b_hat", "f_c_hat", "outcome", "outcome_reason", "status",
     "message",
+]  # fmt: skip
+#: Columns of ``pulses.csv`` (see :meth:`papwc.master.pulses.PulseBound.rows`).
+PULSE_COLUMNS = [
+    "controller", "iteration", "pulse", "t_s", "samples", "amplitude_N", "e_m", "d_m",
+    "smallest_m", "bound_m", "ratio",
 ]  # fmt: skip
 
 def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> Path:
@@ -189,6 +195,18 @@ RUN_PLOTS = ("error.png", "force.png", "estimates.png")
 _TRACE_FILE = re.compile(r"trace_.+_it[0-9]+\.csv(\.tmp)?")
 
 
+def pulse_rows(result: RunResult, scenario: Scenario) -> list[dict]:
+    """Rows of ``pulses.csv`` for one controller: every pulse of every iteration, its bound.
+
+    The bound is that of :mod:`papwc.master.pulses` on the scenario's plant.
+    """
+    from papwc.master.pulses import PulseBound
+
+    bound = PulseBound(scenario.plant, scenario.maneuver.T)
+    return [{"controller": result.label, "iteration": trace.iteration, **row}
+            for trace in result.traces for row in bound.rows(trace)]
+
+
 def trace_name(label: str, iteration: int) -> str:
     """File name of a controller's trace of one iteration."""
     return f"trace_{label}_it{iteration}.csv"
@@ -207,16 +225,22 @@ class ResultsFolder:
         Label -> warning text, recorded in the ``message`` of ok rows.
     what : str
         What writes (``"papwc run"``), for the ``INCOMPLETE`` file.
+    scenario : Scenario, optional
+        The scenario run (one plant for every controller): given, ``pulses.csv``
+        lists every pulse with its bound (no runaway) on that plant.
     """
 
     def __init__(self, out: str | os.PathLike, labels: Iterable[str],
-                 warnings: Mapping[str, str] | None = None, what: str = "papwc run") -> None:
+                 warnings: Mapping[str, str] | None = None, what: str = "papwc run",
+                 scenario: Scenario | None = None) -> None:
         self.out = Path(out)
         self.labels = list(labels)
         self.warnings = dict(warnings or {})
         self.what = what
+        self.scenario = scenario
         self.results: list[RunResult] = []
         self.rows: list[dict] = []
+        self.pulse_rows: list[dict] = []
         self.written: list[str] = []
 
     def start(self) -> None:
@@ -230,7 +254,8 @@ class ResultsFolder:
 
             raise OutputError(f"cannot list folder {str(self.out)!r}: "
                               f"{os_error_text(exc)}") from exc
-        own = {"summary.csv", "summary.csv.tmp", INCOMPLETE, INCOMPLETE + ".tmp", *RUN_PLOTS,
+        own = {"summary.csv", "summary.csv.tmp", "pulses.csv", "pulses.csv.tmp", INCOMPLETE,
+               INCOMPLETE + ".tmp", *RUN_PLOTS,
                *(Path(p).stem + ".tmp.png" for p in RUN_PLOTS)}
         for entry in entries:
             if (entry.name in own or _TRACE_FILE.fullmatch(entry.name)) and not entry.is_dir():
@@ -238,13 +263,17 @@ class ResultsFolder:
         self._mark(f"{self.what} started at {time.strftime('%Y-%m-%d %H:%M:%S')} and has not "
                    "finished (or was stopped)")
 
+    @property
+    def _rows(self) -> str:
+        return "summary and pulses rows" if self.scenario is not None else "summary rows"
+
     def _missing(self) -> list[str]:
         done = {r.label for r in self.results}
-        return ([f"controller {label} (traces and summary rows)" for label in self.labels
+        return ([f"controller {label} (traces and {self._rows})" for label in self.labels
                  if label not in done] + [f"plot {name}" for name in RUN_PLOTS])
 
     def _mark(self, reason: str) -> None:
-        done = [f"controller {r.label}: {len(r.traces)} trace(s) and summary rows"
+        done = [f"controller {r.label}: {len(r.traces)} trace(s) and {self._rows}"
                 for r in self.results]
         text = [f"This folder is incomplete: {reason}.", ""]
         text += ["Written:"] + [f"- {d}" for d in done] if done else ["Written: nothing yet."]
@@ -252,7 +281,7 @@ class ResultsFolder:
         write_text(self.out / INCOMPLETE, "\n".join(text))
 
     def add(self, result: RunResult) -> None:
-        """Write one finished controller: its traces, then summary.csv with its rows."""
+        """Write one finished controller: its traces, then summary.csv (and pulses.csv) rows."""
         for tr in result.traces:
             name = trace_name(result.label, tr.iteration)
             tr.to_csv(self.out / name)
@@ -262,6 +291,11 @@ class ResultsFolder:
         write_rows(self.out / "summary.csv", self.rows, SUMMARY_COLUMNS)
         if "summary.csv" not in self.written:
             self.written.append("summary.csv")
+        if self.scenario is not None:
+            self.pulse_rows += pulse_rows(result, self.scenario)
+            write_rows(self.out / "pulses.csv", self.pulse_rows, PULSE_COLUMNS)
+            if "pulses.csv" not in self.written:
+                self.written.append("pulses.csv")
         self._mark(f"{self.what} is under way or was stopped")
 
     def finish(self, plots: bool = True) -> list[dict]:

@@ -75,7 +75,7 @@ def test_ctrl_c_keeps_the_controllers_that_finished_and_marks_the_folder(
     assert code == 130
     assert "kept in" in err and "the results of first; missing: second" in err
     assert sorted(p.name for p in out.iterdir()) == [
-        "INCOMPLETE", "summary.csv", "trace_first_it1.csv", "trace_first_it2.csv"]
+        "INCOMPLETE", "pulses.csv", "summary.csv", "trace_first_it1.csv", "trace_first_it2.csv"]
     rows = (out / "summary.csv").read_text().splitlines()
     assert len(rows) == 3 and all(r.startswith("first,") for r in rows[1:])
     marker = (out / "INCOMPLETE").read_text()
@@ -101,7 +101,8 @@ def test_a_write_error_is_one_line_and_keeps_what_was_written(
     assert one_line(err) == (f"papwc run: error: cannot write "
                              f"'{out / 'trace_second_it1.csv'}': {reason}")
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["INCOMPLETE", "summary.csv", "trace_first_it1.csv", "trace_first_it2.csv"]
+    assert names == ["INCOMPLETE", "pulses.csv", "summary.csv", "trace_first_it1.csv",
+                     "trace_first_it2.csv"]
 
 
 def test_a_file_in_the_way_of_the_output_folder_is_one_line(tmp_path: Path, capsys) -> None:
@@ -128,9 +129,30 @@ def test_a_new_run_removes_its_own_stale_files_and_nothing_else(tmp_path: Path, 
     (out / "trace_gone_it7.csv").write_text("an old controller")
     assert run(tmp_path, capsys, iterations=2)[0] == 0
     assert sorted(p.name for p in out.iterdir()) == [
-        "error.png", "estimates.png", "force.png", "notes.txt", "summary.csv",
+        "error.png", "estimates.png", "force.png", "notes.txt", "pulses.csv", "summary.csv",
         "trace_first_it1.csv", "trace_first_it2.csv", "trace_second_it1.csv",
         "trace_second_it2.csv"]
+
+
+def test_pulses_csv_lists_every_pulse_of_every_iteration_with_its_ratio(
+        tmp_path: Path, capsys) -> None:
+    """One row per pulse: as many per controller and iteration as summary.csv counts."""
+    import csv
+    from collections import Counter
+
+    assert run(tmp_path, capsys)[0] == 0
+    out = tmp_path / "out"
+    with open(out / "summary.csv", newline="") as f:
+        counts = {(r["controller"], r["iteration"]): int(r["pulses"]) for r in csv.DictReader(f)}
+    with open(out / "pulses.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert list(rows[0]) == papwc.runner.PULSE_COLUMNS
+    listed = Counter((r["controller"], r["iteration"]) for r in rows)
+    assert sum(counts.values()) > 0
+    assert {k: listed.get(k, 0) for k in counts} == counts
+    for r in rows:
+        assert float(r["ratio"]) == pytest.approx(abs(float(r["d_m"])) / float(r["bound_m"]))
+        assert int(r["samples"]) >= 1
 
 
 class BrokenStdout:

@@ -415,6 +415,28 @@ def test_the_smallest_pulse_is_never_a_runaway():
     assert pulse_ratio([tr], TABLE_1, T)[0] > 10.0
 
 
+def test_each_pulse_is_listed_with_its_bound_and_the_runaway_one_stands_out():
+    """PulseBound.rows (``pulses.csv`` of ``papwc run``): a pulse of 1 sample at f_low, then
+    one of 3 samples at 300 N on the error left; the second is the runaway, and the largest
+    ratio listed is the one the battery reports."""
+    forces = [140.0] + [0.0] * 20 + [300.0] * 3 + [0.0] * 20
+    tr = _scripted_trace(forces, x_ref=1e-4, f_low=140.0)
+    bound = PulseBound(TABLE_1, T)
+    rows = bound.rows(tr)
+    assert [(r["pulse"], r["samples"], r["amplitude_N"]) for r in rows] == [
+        (1, 1, 140.0), (2, 3, 300.0)]
+    first, second = rows
+    assert first["t_s"] == 0.0 and second["t_s"] == pytest.approx(21 * T)
+    assert first["e_m"] == 1e-4 and second["e_m"] == pytest.approx(1e-4 - first["d_m"])
+    for r in rows:
+        assert r["bound_m"] == max(1.5 * abs(r["e_m"]) + bound.q, r["smallest_m"])
+        assert r["ratio"] == abs(r["d_m"]) / r["bound_m"]
+    # the first is the smallest pulse itself: its own bound
+    assert first["smallest_m"] == pytest.approx(abs(first["d_m"]), rel=1e-12)
+    assert first["ratio"] <= 1.0 < second["ratio"]
+    assert second["ratio"] == pytest.approx(pulse_ratio([tr], TABLE_1, T)[0], rel=1e-12)
+
+
 def test_the_bound_replays_the_plant_state():
     """On a flexible drive still ringing, the smallest pulse is computed from that state."""
     bound = PulseBound(FLEXIBLE, T)

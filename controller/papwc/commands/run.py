@@ -76,13 +76,14 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else Path("results") / scenario.name
     warnings = {label: scenario.warnings_of(label) for label in scenario.labels}
     fmu = ensure_plant_fmu(args.fmu, out) if args.plant == "fmu" else None
-    folder = ResultsFolder(out, scenario.labels, warnings)
+    folder = ResultsFolder(out, scenario.labels, warnings, scenario=scenario)
     folder.start()
     results = run_into_folder(folder, lambda progress: run_scenario(
         scenario, args.plant, fmu, progress=progress))
     rows = run_into_folder(folder, lambda progress: folder.finish())
     print(format_table(rows))
-    print(f"wrote {out / 'summary.csv'}, {len(rows)} rows, traces and plots in {out}")
+    print(f"wrote {out / 'summary.csv'}, {len(rows)} rows, pulses.csv, traces and plots in "
+          f"{out}")
     failed = [r for r in results if r.error]
     for r in failed:
         print(f"error: {r.label}: {r.error}")

@@ -112,27 +112,79 @@ class PulseBound:
         """Largest ratio of a pulse's displacement to its bound, per trace (0 without pulses).
 
         ``traces`` are iterations of one controller, each from the plant's
-        initial state.
+        initial state. The smallest pulse is simulated only for a pulse beyond
+        ``1.5*|e| + q`` that could raise the largest ratio.
         """
         out = []
         for trace in traces:
             worst = 0.0
-            replay = None
-            lows = trace.columns.get("f_low")
+            check = _Check(self, trace)
             for p in pulses_of(trace):
-                d = abs(p.d)
-                height = abs(p.amplitude)
-                f_low = height if lows is None else min(abs(lows[p.k]), height)
-                cheap = RUNAWAY_FACTOR * abs(p.e) + self.q
-                ratio = d / cheap if cheap > 0.0 else (math.inf if d > 0.0 else 0.0)
-                if ratio > 1.0 and ratio > worst and f_low > 0.0:
-                    if replay is None:
-                        replay = _Replay(self._plant, trace)
-                    small = replay.smallest(p.k, p.end, math.copysign(f_low, p.amplitude))
-                    ratio = d / max(cheap, small)
+                ratio = check.cheap_ratio(p)
+                if ratio > 1.0 and ratio > worst:
+                    ratio = check.ratio(p)
                 worst = max(worst, ratio)
             out.append(worst)
         return out
+
+    def rows(self, trace: Trace) -> list[dict[str, Any]]:
+        """One row per pulse of a trace: where it starts, its width, height, error, bound, ratio.
+
+        Keys (SI units): ``pulse`` (1, 2, ... in the iteration), ``t_s`` (its
+        start), ``samples`` (of non-zero force from its start), ``amplitude_N``
+        (signed largest force), ``e_m`` (error before it), ``d_m`` (signed
+        displacement to the next rest), ``smallest_m`` (the smallest pulse from
+        the plant's state then, see the class), ``bound_m`` (the larger of
+        ``1.5*|e| + q`` and ``smallest_m``) and ``ratio`` (``|d_m|/bound_m``;
+        above 1 the pulse ran away).
+        """
+        check = _Check(self, trace)
+        u = trace.columns["u"]
+        out = []
+        for i, p in enumerate(pulses_of(trace), 1):
+            samples = 0
+            while p.k + samples < len(u) and u[p.k + samples] == u[p.k + samples] \
+                    and u[p.k + samples] != 0.0:
+                samples += 1
+            small = check.smallest(p)
+            bound = max(RUNAWAY_FACTOR * abs(p.e) + self.q, small)
+            out.append({"pulse": i, "t_s": p.k * trace.T, "samples": samples,
+                        "amplitude_N": p.amplitude, "e_m": p.e, "d_m": p.d, "smallest_m": small,
+                        "bound_m": bound, "ratio": _divide(abs(p.d), bound)})
+        return out
+
+
+def _divide(d: float, bound: float) -> float:
+    """d/bound, with 0/0 = 0 and d/0 = inf."""
+    return d / bound if bound > 0.0 else (math.inf if d > 0.0 else 0.0)
+
+
+class _Check:
+    """The bound of the pulses of one trace; the plant is replayed only when needed."""
+
+    def __init__(self, bound: PulseBound, trace: Trace) -> None:
+        self.bound = bound
+        self.trace = trace
+        self.lows = trace.columns.get("f_low")
+        self.replay: _Replay | None = None
+
+    def cheap_ratio(self, p: Pulse) -> float:
+        """|d| / (1.5*|e| + q)."""
+        return _divide(abs(p.d), RUNAWAY_FACTOR * abs(p.e) + self.bound.q)
+
+    def smallest(self, p: Pulse) -> float:
+        """|Displacement| of the smallest pulse from the state at p's start (0: no height)."""
+        height = abs(p.amplitude)
+        f_low = height if self.lows is None else min(abs(self.lows[p.k]), height)
+        if not f_low > 0.0:
+            return 0.0
+        if self.replay is None:
+            self.replay = _Replay(self.bound._plant, self.trace)
+        return self.replay.smallest(p.k, p.end, math.copysign(f_low, p.amplitude))
+
+    def ratio(self, p: Pulse) -> float:
+        """|d| / max(1.5*|e| + q, the smallest pulse)."""
+        return _divide(abs(p.d), max(RUNAWAY_FACTOR * abs(p.e) + self.bound.q, self.smallest(p)))
 
 
 class _Replay:
