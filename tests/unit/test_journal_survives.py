@@ -133,3 +133,30 @@ def test_every_valid_record_shape_passes_and_nan_metrics_are_allowed() -> None:
     rec["controllers"][0]["iterations"][0]["settle_time_s"] = float("nan")
     assert record_problem(rec) is None
     assert record_problem(json.loads(json.dumps(rec))) is None
+
+
+def test_a_ctrl_c_during_an_append_comes_after_the_record_is_written_and_counted(
+        tmp_path: Path) -> None:
+    """A Ctrl-C that arrives while a record is appended -- here while its line is flushed,
+    the SIGINT handler in effect then being run as Python runs it for a signal that came
+    just before -- is raised once the record is on disk and counted, never between."""
+    import signal
+
+    path = tmp_path / "journal.jsonl"
+    journal = Journal(path, HEADER, resume=False, overwrite=True, planned=PLANNED)
+    real_flush = journal._file.flush
+
+    def flush_with_ctrl_c() -> None:
+        journal._file.flush = real_flush  # once
+        signal.getsignal(signal.SIGINT)(signal.SIGINT, None)
+        real_flush()
+
+    journal._file.flush = flush_with_ctrl_c
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            journal.append(record("d0"))
+        assert ("b", "d0") in journal.records
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    finally:
+        journal.close()
+    assert path.read_text().count("\n") == 2  # the header and the record

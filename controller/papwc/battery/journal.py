@@ -151,16 +151,38 @@ def read_journal(path: Path, warnings: list[str] | None = None, strict: bool = F
 
 @contextlib.contextmanager
 def _ctrl_c_held() -> Iterator[None]:
-    """Block SIGINT in this thread for the block; a Ctrl-C meanwhile arrives after it."""
-    mask = getattr(signal, "pthread_sigmask", None)
-    if mask is None:
-        yield
+    """Hold Ctrl-C back for the block; one that arrives meanwhile is raised after it.
+
+    In the main thread the SIGINT handler is replaced for the block by one that
+    only notes the request: a Ctrl-C whose signal came just before the block
+    (its Python handler not yet run) is then noted too, instead of raising
+    KeyboardInterrupt inside the block. Elsewhere SIGINT is blocked in the
+    thread (the main thread takes it).
+    """
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        mask = getattr(signal, "pthread_sigmask", None)
+        if mask is None:
+            yield
+            return
+        blocked = mask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            yield
+        finally:
+            mask(signal.SIG_SETMASK, blocked)
         return
-    old = mask(signal.SIG_BLOCK, {signal.SIGINT})
+    held: list[int] = []
+    old = signal.signal(signal.SIGINT, lambda signum, frame: held.append(signum))
     try:
         yield
     finally:
-        mask(signal.SIG_SETMASK, old)
+        signal.signal(signal.SIGINT, old)
+    if held:
+        if callable(old):
+            old(signal.SIGINT, None)
+        elif old != signal.SIG_IGN:
+            raise KeyboardInterrupt
 
 
 def _os_error(path: Path, operation: str, exc: OSError) -> OutputError:
