@@ -189,6 +189,31 @@ def test_a_model_that_missed_falls_back_to_the_smallest_pulse():
     assert ctl.refusal == Reason.MODEL_REJECTED
 
 
+def test_a_rejected_model_steps_up_a_smallest_pulse_that_only_crept():
+    """Cautious, the smallest pulse is repeated while it moves measurably; one that moved
+    less than the rest band (pre-sliding creep, a lag) is followed by one sample 10 % higher
+    toward the target, while the model says that moves no farther than the error -- a
+    cautious maneuver does not spend its pulse budget creeping."""
+    ctl = make_controller(_settings("exact", x_resolution=1e-7), T)
+    for f, d in [(300.0, 2e-4), (200.0, 3e-5), (150.0, 2e-5)]:
+        ctl.learn(3, f, d)
+    ctl.sigma2 = (2e-7) ** 2
+    ctl._update_rest_test()
+    band, f_lo = ctl._band, ctl.f_floor
+    assert band > 0.0
+    ctl.misses, ctl.pulses = 3, 1
+    e = 2.0 * ctl.displacement(1, 1.1 * f_lo)
+    ctl.last_pulse, ctl.last_d = (1, f_lo), 2.0 * band  # moved: the smallest again
+    assert ctl.plan_pulse(e) == (1, f_lo)
+    ctl.last_pulse, ctl.last_d = (1, -f_lo), -0.5 * band  # crept
+    n, f_p = ctl.plan_pulse(e)
+    assert n == 1 and f_p == pytest.approx(1.1 * f_lo, rel=1e-12)
+    assert ctl.plan_pulse(-e)[1] == pytest.approx(-1.1 * f_lo, rel=1e-12)
+    # the higher pulse would go beyond the error: the smallest instead
+    e_between = 0.5 * (ctl.displacement(1, f_lo) + ctl.displacement(1, 1.1 * f_lo))
+    assert ctl.plan_pulse(e_between) == (1, f_lo)
+
+
 def test_noise_weights_the_fit_and_marks_what_did_not_move():
     ctl = make_controller(_settings("exact", x_resolution=1e-7), T)
     ctl.sigma2 = (2e-7) ** 2

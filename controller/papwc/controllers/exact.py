@@ -31,7 +31,9 @@ less than one sample at the stiction force, Eq. (20). This controller
 * falls back to cautious pulses when its model is not to be trusted (a pulse
   missed while its relative error is 50 % or more, or three pulses in a row
   missed by more than 100 %): only the smallest pulse toward the target, and
-  only while that cannot end farther from it than the mass is;
+  only while that cannot end farther from it than the mass is; after one that
+  moved less than the rest band (a creep: pre-sliding, a lag), one sample 10 %
+  higher, while the model says it moves no farther than the error;
 * stops once ``|e|`` is below what a move can achieve (half the encoder
   resolution, or the model's relative error times the move), when even the
   cautious pulse cannot help a rejected model (``model_rejected``), and after
@@ -265,7 +267,9 @@ class ExactController(Controller):
         While the model is not to be trusted (a missed pulse with a relative
         error of 50 % or more, or three pulses in a row missed by more than
         100 %) only the smallest pulse toward the target is planned, if it is
-        predicted to move at most |e|.
+        predicted to move at most |e|; after a one-sample pulse that moved less
+        than the rest band, one sample ``1 + _PROBE_STEP`` times as high, if it
+        is predicted to move at most |e|.
 
         Refuses (height 0; the controller stops, see :attr:`refusal`) when e is
         not finite, when ``max_pulses`` pulses have been applied in this
@@ -293,6 +297,14 @@ class ExactController(Controller):
             # The model is not to be trusted: only the smallest pulse toward the target,
             # and only while it lands no farther than now even if it moves twice as far
             # as the pulses of that height moved so far.
+            n_last, f_last = self.last_pulse
+            if (n_last == 1 and abs(f_last) >= f_lo and self.pulses
+                    and abs(self.last_d) <= self._band):
+                # the last cautious pulse did not move measurably (a creep): 10 % higher,
+                # while the model says it moves no farther than the error
+                f_up = min(abs(f_last) * (1.0 + _PROBE_STEP), self.settings.f_p_max)
+                if self.displacement(1, f_up) <= d:
+                    return 1, toward * f_up
             if d_small <= d:
                 return 1, toward * f_lo
             if self.misses >= _REJECT_AFTER:
