@@ -25,6 +25,7 @@ from pathlib import Path
 
 from papwc.errors import FmuError
 from papwc.master import FmuSlave, PhysicsSlave, RunResult, Slave, run_controller, summarize
+from papwc.master.pulses import ROW_COLUMNS, PulseBound
 from papwc.output import make_folder, remove_file, write_rows, write_text
 from papwc.scenario import Scenario
 
@@ -33,11 +34,9 @@ SUMMARY_COLUMNS = [
     "limit_cycle", "cycle_p2p_m", "b_hat", "f_c_hat", "outcome", "outcome_reason", "status",
     "message",
 ]  # fmt: skip
-#: Columns of ``pulses.csv`` (see :meth:`papwc.master.pulses.PulseBound.rows`).
-PULSE_COLUMNS = [
-    "controller", "iteration", "pulse", "t_s", "samples", "amplitude_N", "e_m", "d_m",
-    "smallest_m", "bound_m", "ratio",
-]  # fmt: skip
+#: Columns of ``pulses.csv``: the controller, the iteration and
+#: :data:`papwc.master.pulses.ROW_COLUMNS`.
+PULSE_COLUMNS = ["controller", "iteration", *ROW_COLUMNS]
 
 def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> Path:
     """The plant FMU to use: ``fmu`` if given, else one built from the current sources.
@@ -200,8 +199,6 @@ def pulse_rows(result: RunResult, scenario: Scenario) -> list[dict]:
 
     The bound is that of :mod:`papwc.master.pulses` on the scenario's plant.
     """
-    from papwc.master.pulses import PulseBound
-
     bound = PulseBound(scenario.plant, scenario.maneuver.T)
     return [{"controller": result.label, "iteration": trace.iteration, **row}
             for trace in result.traces for row in bound.rows(trace)]
@@ -264,16 +261,17 @@ class ResultsFolder:
                    "finished (or was stopped)")
 
     @property
-    def _rows(self) -> str:
+    def _rows_written(self) -> str:
+        """What a finished controller has in the CSV files besides its traces."""
         return "summary and pulses rows" if self.scenario is not None else "summary rows"
 
     def _missing(self) -> list[str]:
         done = {r.label for r in self.results}
-        return ([f"controller {label} (traces and {self._rows})" for label in self.labels
+        return ([f"controller {label} (traces and {self._rows_written})" for label in self.labels
                  if label not in done] + [f"plot {name}" for name in RUN_PLOTS])
 
     def _mark(self, reason: str) -> None:
-        done = [f"controller {r.label}: {len(r.traces)} trace(s) and {self._rows}"
+        done = [f"controller {r.label}: {len(r.traces)} trace(s) and {self._rows_written}"
                 for r in self.results]
         text = [f"This folder is incomplete: {reason}.", ""]
         text += ["Written:"] + [f"- {d}" for d in done] if done else ["Written: nothing yet."]

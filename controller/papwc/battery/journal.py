@@ -20,6 +20,7 @@ import json
 import math
 import os
 import signal
+import threading
 from collections.abc import Iterator, Mapping
 from pathlib import Path
 
@@ -159,8 +160,6 @@ def _ctrl_c_held() -> Iterator[None]:
     KeyboardInterrupt inside the block. Elsewhere SIGINT is blocked in the
     thread (the main thread takes it).
     """
-    import threading
-
     if threading.current_thread() is not threading.main_thread():
         mask = getattr(signal, "pthread_sigmask", None)
         if mask is None:

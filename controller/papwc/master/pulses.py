@@ -33,10 +33,13 @@ from papwc.controllers import Mode
 from papwc.master.trace import Trace
 from papwc.model.plant import PLANT_DEFAULTS
 
-__all__ = ["Pulse", "PulseBound", "pulse_ratio", "pulses_of"]
+__all__ = ["ROW_COLUMNS", "Pulse", "PulseBound", "pulse_ratio", "pulses_of"]
 
 #: Factor on |e| of the bound.
 RUNAWAY_FACTOR = 1.5
+#: Keys of :meth:`PulseBound.rows`, in order (SI units; see there).
+ROW_COLUMNS = ("pulse", "t_s", "samples", "amplitude_N", "e_m", "d_m", "smallest_m", "bound_m",
+               "ratio")
 #: Longest coast simulated for the smallest pulse, s.
 _COAST_MAX = 2.0
 
@@ -55,6 +58,8 @@ class Pulse:
     d: float
     #: Row of the trace where the displacement is read (the next rest).
     end: int
+    #: Samples of non-zero force from its start (its width).
+    samples: int
 
 
 def pulses_of(trace: Trace) -> list[Pulse]:
@@ -75,7 +80,10 @@ def pulses_of(trace: Trace) -> list[Pulse]:
                 break
         forces = [f for f in u[k0:max(end, k0 + 1)] if f == f and f != 0.0]
         amp = max(forces, key=abs) if forces else 0.0
-        out.append(Pulse(k0, amp, trace.x_ref - x[k0], x[end] - x[k0], end))
+        width = 0
+        while k0 + width < n and u[k0 + width] == u[k0 + width] and u[k0 + width] != 0.0:
+            width += 1
+        out.append(Pulse(k0, amp, trace.x_ref - x[k0], x[end] - x[k0], end, width))
     return out
 
 
@@ -139,18 +147,13 @@ class PulseBound:
         above 1 the pulse ran away).
         """
         check = _Check(self, trace)
-        u = trace.columns["u"]
         out = []
         for i, p in enumerate(pulses_of(trace), 1):
-            samples = 0
-            while p.k + samples < len(u) and u[p.k + samples] == u[p.k + samples] \
-                    and u[p.k + samples] != 0.0:
-                samples += 1
             small = check.smallest(p)
-            bound = max(RUNAWAY_FACTOR * abs(p.e) + self.q, small)
-            out.append({"pulse": i, "t_s": p.k * trace.T, "samples": samples,
-                        "amplitude_N": p.amplitude, "e_m": p.e, "d_m": p.d, "smallest_m": small,
-                        "bound_m": bound, "ratio": _divide(abs(p.d), bound)})
+            bound = max(check.cheap_bound(p), small)
+            out.append(dict(zip(ROW_COLUMNS, (
+                i, p.k * trace.T, p.samples, p.amplitude, p.e, p.d, small, bound,
+                _divide(abs(p.d), bound)), strict=True)))
         return out
 
 
@@ -168,9 +171,13 @@ class _Check:
         self.lows = trace.columns.get("f_low")
         self.replay: _Replay | None = None
 
+    def cheap_bound(self, p: Pulse) -> float:
+        """1.5*|e| + q, m."""
+        return RUNAWAY_FACTOR * abs(p.e) + self.bound.q
+
     def cheap_ratio(self, p: Pulse) -> float:
         """|d| / (1.5*|e| + q)."""
-        return _divide(abs(p.d), RUNAWAY_FACTOR * abs(p.e) + self.bound.q)
+        return _divide(abs(p.d), self.cheap_bound(p))
 
     def smallest(self, p: Pulse) -> float:
         """|Displacement| of the smallest pulse from the state at p's start (0: no height)."""
@@ -184,7 +191,7 @@ class _Check:
 
     def ratio(self, p: Pulse) -> float:
         """|d| / max(1.5*|e| + q, the smallest pulse)."""
-        return _divide(abs(p.d), max(RUNAWAY_FACTOR * abs(p.e) + self.bound.q, self.smallest(p)))
+        return _divide(abs(p.d), max(self.cheap_bound(p), self.smallest(p)))
 
 
 class _Replay:
