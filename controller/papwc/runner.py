@@ -239,6 +239,8 @@ class ResultsFolder:
         self.rows: list[dict] = []
         self.pulse_rows: list[dict] = []
         self.written: list[str] = []
+        #: The controller being written and what of it is on disk (until it all is).
+        self._partial: tuple[str, list[str]] | None = None
 
     def start(self) -> None:
         """Create the folder, remove what an earlier run wrote there, mark it incomplete."""
@@ -267,12 +269,18 @@ class ResultsFolder:
 
     def _missing(self) -> list[str]:
         done = {r.label for r in self.results}
-        return ([f"controller {label} (traces and {self._rows_written})" for label in self.labels
-                 if label not in done] + [f"plot {name}" for name in RUN_PLOTS])
+        part = self._partial[0] if self._partial is not None and self._partial[1] else None
+        return ([f"controller {label} (" + ("the rest of its files" if label == part else
+                                            f"traces and {self._rows_written}") + ")"
+                 for label in self.labels if label not in done]
+                + [f"plot {name}" for name in RUN_PLOTS])
 
     def _mark(self, reason: str) -> None:
         done = [f"controller {r.label}: {len(r.traces)} trace(s) and {self._rows_written}"
                 for r in self.results]
+        if self._partial is not None and self._partial[1]:
+            label, parts = self._partial
+            done.append(f"controller {label} in part: {', '.join(parts)}")
         text = [f"This folder is incomplete: {reason}.", ""]
         text += ["Written:"] + [f"- {d}" for d in done] if done else ["Written: nothing yet."]
         text += ["", "Missing:"] + [f"- {m}" for m in self._missing()] + [""]
@@ -280,13 +288,16 @@ class ResultsFolder:
 
     def add(self, result: RunResult) -> None:
         """Write one finished controller: its traces, then summary.csv (and pulses.csv) rows."""
+        parts: list[str] = []
+        self._partial = (result.label, parts)
         for tr in result.traces:
             name = trace_name(result.label, tr.iteration)
             tr.to_csv(self.out / name)
             self.written.append(name)
-        self.results.append(result)
+            parts.append(name)
         self.rows += summary_rows([result], self.warnings)
         write_rows(self.out / "summary.csv", self.rows, SUMMARY_COLUMNS)
+        parts.append("its rows of summary.csv")
         if "summary.csv" not in self.written:
             self.written.append("summary.csv")
         if self.scenario is not None:
@@ -294,6 +305,9 @@ class ResultsFolder:
             write_rows(self.out / "pulses.csv", self.pulse_rows, PULSE_COLUMNS)
             if "pulses.csv" not in self.written:
                 self.written.append("pulses.csv")
+        # counted as written (INCOMPLETE, the line after a stop) once all of it is
+        self._partial = None
+        self.results.append(result)
         self._mark(f"{self.what} is under way or was stopped")
 
     def finish(self, plots: bool = True) -> list[dict]:
@@ -318,8 +332,11 @@ class ResultsFolder:
             marked = ""
         kept = [r.label for r in self.results]
         missing = [label for label in self.labels if label not in kept]
+        partial = (f" ({self._partial[0]} in part)" if self._partial is not None
+                   and self._partial[1] else "")
         return (f"kept in {self.out}: "
                 + (f"the results of {', '.join(kept)}" if kept else "no finished controller")
+                + partial
                 + (f"; missing: {', '.join(missing)}" if missing else "")
                 + f"; the plots were not written{marked}")
 

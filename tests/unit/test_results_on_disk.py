@@ -105,6 +105,31 @@ def test_a_write_error_is_one_line_and_keeps_what_was_written(
                      "trace_first_it2.csv"]
 
 
+def test_a_controller_written_in_part_is_said_to_be(tmp_path: Path, capsys, monkeypatch) -> None:
+    """pulses.csv cannot be written after the first controller's traces and summary rows
+    were: the line and INCOMPLETE say that controller is there in part, not whole."""
+    real = os.replace
+
+    def failing(src, dst):
+        if Path(dst).name == "pulses.csv":
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(src, dst)
+
+    monkeypatch.setattr(papwc.output.os, "replace", failing)
+    exit_code, _, err = run(tmp_path, capsys)
+    out = tmp_path / "out"
+    assert exit_code == 1
+    assert one_line(err) == (f"papwc run: error: cannot write '{out / 'pulses.csv'}': "
+                             "No space left on device")
+    assert "no finished controller (first in part); missing: first, second" in err
+    assert sorted(p.name for p in out.iterdir()) == [
+        "INCOMPLETE", "summary.csv", "trace_first_it1.csv", "trace_first_it2.csv"]
+    marker = (out / "INCOMPLETE").read_text()
+    assert ("- controller first in part: trace_first_it1.csv, trace_first_it2.csv, its rows "
+            "of summary.csv") in marker
+    assert "- controller first (the rest of its files)" in marker
+
+
 def test_a_file_in_the_way_of_the_output_folder_is_one_line(tmp_path: Path, capsys) -> None:
     (tmp_path / "out").write_text("not a folder")
     code, _, err = run(tmp_path, capsys)
