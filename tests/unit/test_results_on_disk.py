@@ -83,18 +83,23 @@ def test_ctrl_c_keeps_the_controllers_that_finished_and_marks_the_folder(
     assert "plot error.png" in marker
 
 
-@pytest.mark.parametrize("code, reason", [(errno.ENOSPC, "No space left on device"),
-                                          (errno.EROFS, "Read-only file system")])
-def test_a_write_error_is_one_line_and_keeps_what_was_written(
-        tmp_path: Path, capsys, monkeypatch, code, reason) -> None:
+def fail_writes(monkeypatch, where, code: int) -> None:
+    """Make every atomic write whose destination satisfies ``where`` fail with errno ``code``."""
     real = os.replace
 
     def failing(src, dst):
-        if "second" in str(dst):
+        if where(dst):
             raise OSError(code, os.strerror(code))
         return real(src, dst)
 
     monkeypatch.setattr(papwc.output.os, "replace", failing)
+
+
+@pytest.mark.parametrize("code, reason", [(errno.ENOSPC, "No space left on device"),
+                                          (errno.EROFS, "Read-only file system")])
+def test_a_write_error_is_one_line_and_keeps_what_was_written(
+        tmp_path: Path, capsys, monkeypatch, code, reason) -> None:
+    fail_writes(monkeypatch, lambda dst: "second" in str(dst), code)
     exit_code, _, err = run(tmp_path, capsys)
     out = tmp_path / "out"
     assert exit_code == 1
@@ -108,14 +113,7 @@ def test_a_write_error_is_one_line_and_keeps_what_was_written(
 def test_a_controller_written_in_part_is_said_to_be(tmp_path: Path, capsys, monkeypatch) -> None:
     """pulses.csv cannot be written after the first controller's traces and summary rows
     were: the line and INCOMPLETE say that controller is there in part, not whole."""
-    real = os.replace
-
-    def failing(src, dst):
-        if Path(dst).name == "pulses.csv":
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
-        return real(src, dst)
-
-    monkeypatch.setattr(papwc.output.os, "replace", failing)
+    fail_writes(monkeypatch, lambda dst: Path(dst).name == "pulses.csv", errno.ENOSPC)
     exit_code, _, err = run(tmp_path, capsys)
     out = tmp_path / "out"
     assert exit_code == 1
