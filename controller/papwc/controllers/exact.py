@@ -24,6 +24,12 @@ less than one sample at the stiction force, Eq. (20). This controller
   by two pulses: first away from the target by d_small, then back by
   ``|e| + d_small`` in one pulse; no pulse moves farther than the larger of
   ``|e|`` and d_small;
+* plans a pulse wider than any in its history (where the model extrapolates: a
+  fit to one-sample pulses near breakaway says little of two samples on a table
+  with pre-sliding or a lag) for at most ``_EXPLORE`` (3) times the farthest a
+  pulse in the history moved, and, while the model's misfit or its last
+  prediction's error is above ``_EXACT_ENOUGH`` (20 %), with ``_NEW_WIDTH`` (2/3)
+  of the trust;
 * after a pulse its model missed by more than 50 %, plans no pulse wider than
   the widest it has made nor more than 10 % higher than the highest of at least
   that width (a model refitted to one or two pulses of a plant unlike Eq. (3)
@@ -75,6 +81,13 @@ _TRIED_AFTER = 0.5
 _PROBE_STEP = 0.1
 #: Relative model error from which, after a missed pulse, only the smallest pulse is made.
 _CAUTIOUS = 0.5
+#: Largest planned displacement relative to the farthest a pulse in the history moved.
+_EXPLORE = 3.0
+#: Trust (relative) of a pulse wider than every pulse in the history.
+_NEW_WIDTH = 2.0 / 3.0
+#: Relative model error (misfit over the history, or of the last prediction) above which
+#: a pulse wider than any made is planned with ``_NEW_WIDTH`` of the trust.
+_EXACT_ENOUGH = 0.2
 #: Largest pulse width searched, samples.
 _N_SEARCH_MAX = 1 << 20
 
@@ -313,8 +326,15 @@ class ExactController(Controller):
         if trust * d >= d_small:
             if d <= max(0.5 * est.x_resolution, rel * d):
                 return 1, 0.0
-            n, f_p = self.plan_displacement(trust * d, f_lo)
-            n, f_p = self._within_tried(n, f_p, trust * d, f_lo)
+            goal = trust * d
+            n, f_p = self.plan_displacement(goal, f_lo)
+            if est.pulses and n > max(n_i for n_i, _, _ in est.pulses):
+                # wider than any pulse it has made: the model extrapolates
+                goal = self._explored(goal)
+                if max(est.rel_misfit, self.errors[-1]) > _EXACT_ENOUGH:
+                    goal *= _NEW_WIDTH
+                n, f_p = self.plan_displacement(goal, f_lo)
+            n, f_p = self._within_tried(n, f_p, goal, f_lo)
             return n, toward * f_p
         if d_small <= 1.5 * d or abs(d_small - d) <= rel * d_small:
             return 1, toward * f_lo  # the smallest pulse toward: it lands within d/2
@@ -340,6 +360,11 @@ class ExactController(Controller):
         if d_small < 2.0 * d and abs(d_small - d) < d:
             return 1, toward * f_lo
         return 1, 0.0
+
+    def _explored(self, d: float) -> float:
+        """d (m), at most ``_EXPLORE`` times the farthest any pulse in the history moved."""
+        moved = [d_i for _, _, d_i in self.estimator.pulses]
+        return min(d, _EXPLORE * max(moved)) if moved else d
 
     def _within_tried(self, n: int, f_p: float, d: float, f_lo: float) -> tuple[int, float]:
         """The planned pulse (n samples, height f_p > 0 N, for d m), kept near those tried.
