@@ -328,7 +328,7 @@ class ExactController(Controller):
                 return 1, 0.0
             goal = trust * d
             n, f_p = self.plan_displacement(goal, f_lo)
-            if est.pulses and n > max(n_i for n_i, _, _ in est.pulses):
+            if est.pulses and n > est.widest:
                 # wider than any pulse it has made: the model extrapolates
                 goal = self._explored(goal)
                 if max(est.rel_misfit, self.errors[-1]) > _EXACT_ENOUGH:
@@ -378,9 +378,8 @@ class ExactController(Controller):
         est = self.estimator
         if self.errors[-1] <= _TRIED_AFTER or not est.pulses:
             return n, f_p
-        n_seen = max(n_i for n_i, _, _ in est.pulses)
-        if n > n_seen:
-            n = n_seen
+        if n > est.widest:
+            n = est.widest
             f_p = self._amplitude(d, n, f_lo, self.settings.f_p_max)
         f_seen = max(f_i for n_i, f_i, _ in est.pulses if n_i >= n)
         return n, min(f_p, max(f_lo, f_seen * (1.0 + _TRIED_STEP)))

@@ -152,6 +152,11 @@ class PulseModelEstimator:
         """Estimated viscous damping, N.s/m."""
         return self.params()[2]
 
+    @property
+    def widest(self) -> int:
+        """Most samples of a pulse in the history (0 without pulses)."""
+        return max((n for n, _, _ in self.pulses), default=0)
+
     def displacement(self, f_p: float, n: int) -> float:
         """Predicted displacement of a pulse of height f_p (N) and n samples, Eq. (3), m."""
         m, f_c, c = self.params()
