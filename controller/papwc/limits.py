@@ -9,8 +9,10 @@ gives the estimate that exceeds it.
 
 from __future__ import annotations
 
+import argparse
 import math
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 from papwc.errors import ScenarioError
@@ -24,6 +26,7 @@ __all__ = [
     "NAME_PATTERN",
     "check_name",
     "check_steps",
+    "whole_number",
     "safe_name",
     "scenario_steps",
 ]
@@ -106,3 +109,24 @@ def input_path_problem(path: Path) -> str | None:
     if not path.is_file():
         return "is not a regular file (a FIFO, device or socket)"
     return None
+
+
+def whole_number(low: int, high: int | None = None) -> Callable[[str], int]:
+    """An argparse type: a whole number in ``low..high`` (no upper bound if high is None).
+
+    Its refusals are one phrase each: ``'x' is not a whole number``, ``0 must be >= 1``,
+    ``0 is outside 1..50``.
+    """
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+        if high is None and value < low:
+            raise argparse.ArgumentTypeError(f"{text} must be >= {low}")
+        if high is not None and not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{value} is outside {low}..{high}")
+        return value
+
+    return parse

@@ -12,7 +12,7 @@ from papwc.analysis import ringing
 def test_a_flexible_drive_has_a_smallest_move_and_keeps_ringing(capsys):
     ringing.main([])
     out = capsys.readouterr().out
-    moves = [float(v) for v in re.findall(r"moves +([-0-9.]+) um", out)]
+    moves = [float(v) for v in re.findall(r"moves +([-0-9.]+) um(?! there)", out)]
     rings = [float(v) for v in re.findall(r"leaves +([-0-9.]+) N ringing", out)]
     n_heights = len(ringing.HEIGHTS)
     assert len(moves) == n_heights + 1 + len(ringing.WAITS) and len(rings) == n_heights + 1
@@ -25,6 +25,21 @@ def test_a_flexible_drive_has_a_smallest_move_and_keeps_ringing(capsys):
     # the same pulse again moves from nothing to nearly what the first moved, by the wait
     again = moves[n_heights + 1:]
     assert min(again) == 0.0 and max(again) > 0.8 * one_period[ringing.HEIGHTS.index(75.0)]
+    # the smallest move: just above its breakaway height every width moves some um at once,
+    # and more for each newton above
+    smallest = re.findall(r"breakaway of a (\d+)-sample pulse at ([0-9.]+) N: moves +([0-9.]+) um "
+                          r"there and +([0-9.]+) um", out)
+    assert [int(k) for k, *_ in smallest] == [1, 2, 5]
+    for *_, there, above in smallest:
+        assert float(there) > 5.0 and float(above) > float(there) + 1.0
+    # the one-period breakaway lies between the heights above that did not and did move
+    assert 67.0 < float(smallest[2][1]) <= 67.5
+
+
+def test_the_breakaway_height_is_found_by_bisection():
+    f_b = ringing.breakaway_height(lambda f: max(f - 123.456, 0.0))
+    assert abs(f_b - 123.456) <= ringing.THRESHOLD_TOL
+    assert ringing.breakaway_height(lambda f: 0.0) != ringing.breakaway_height(lambda f: 0.0)
 
 
 def test_an_argument_is_refused_in_one_line(capsys):

@@ -8,7 +8,12 @@ samples of T:
 * one-mode-period pulses (``round(1/(f_mode*T))`` samples) of rising height, and one
   sample at 140 N: how far the table moves and the spring force left ringing 0.6 s
   later, N;
-* the same pulse twice: how far the second moves, by the time between them.
+* the same pulse twice: how far the second moves, by the time between them;
+* the smallest move: for pulses of 1 and 2 samples and of one mode period, the height at
+  which the table breaks away (found by bisection to ``THRESHOLD_TOL``), how far it moves
+  just above it and ``ABOVE`` N higher: the slip has a smallest size, and above it each
+  newton moves the table some um, so a move known to 1 um needs the height known against
+  a breakaway, set by the spring force the drive is left with, to a fraction of a newton.
 
 Run ``python -m papwc.analysis.ringing``; it prints one line per pulse.
 """
@@ -16,13 +21,14 @@ Run ``python -m papwc.analysis.ringing``; it prints one line per pulse.
 from __future__ import annotations
 
 import argparse
+import math
 import tomllib
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 from papwc.model.dynamics import Plant
 from papwc.resources import scenario_file
 
-__all__ = ["flexible_plant", "main", "spring_force"]
+__all__ = ["breakaway_height", "flexible_plant", "main", "spring_force"]
 
 #: Heights of the one-period pulses, N.
 HEIGHTS = (67.0, 67.5, 70.0, 75.0, 80.0)
@@ -31,6 +37,12 @@ ONE_SAMPLE = 140.0
 #: Height of the repeated pulse, N, and the times from the end of the first to the second, s.
 REPEATED = 75.0
 WAITS = (0.15, 0.2, 0.25, 0.4, 1.0)
+#: Widths (samples; 0 = one mode period) whose breakaway height is searched.
+THRESHOLD_WIDTHS = (1, 2, 0)
+#: Bisection interval (N) and tolerance (N) of the breakaway height, and the step above, N.
+THRESHOLD_RANGE = (10.0, 300.0)
+THRESHOLD_TOL = 1e-4
+ABOVE = 0.5
 #: Time at rest after a pulse before its displacement and ringing are read, s.
 SETTLE = 0.6
 
@@ -52,6 +64,24 @@ def flexible_plant() -> tuple[dict[str, float], float, float]:
 def spring_force(plant: Plant) -> float:
     """Force of the coupling on the table, N (``FlexibleMode.coupling``)."""
     return plant.flexible.coupling(plant.x, plant.v, plant.x_d, plant.v_d)
+
+
+def breakaway_height(moves: Callable[[float], float]) -> float:
+    """Lowest height (N) in ``THRESHOLD_RANGE`` at which ``moves(height)`` (m) is > 0.
+
+    By bisection to ``THRESHOLD_TOL``; ``moves`` is taken as 0 below a height and > 0 above.
+    NaN if the top of the range does not move the table.
+    """
+    lo, hi = THRESHOLD_RANGE
+    if not moves(hi) > 0.0:
+        return math.nan
+    while hi - lo > THRESHOLD_TOL:
+        mid = 0.5 * (lo + hi)
+        if moves(mid) > 0.0:
+            hi = mid
+        else:
+            lo = mid
+    return hi
 
 
 def main(argv: Sequence[str] | None = None) -> None:
@@ -89,6 +119,15 @@ def main(argv: Sequence[str] | None = None) -> None:
         after = run([REPEATED] * n + [0.0] * k + [REPEATED] * n + [0.0] * rest).x
         print(f"the {REPEATED:g} N pulse again {wait * 1e3:5.0f} ms after the first "
               f"(which moved {first * 1e6:.1f} um): moves {(after - before) * 1e6:6.1f} um")
+    for width in THRESHOLD_WIDTHS:
+        k = width or n
+
+        def moves(f: float, k: int = k) -> float:
+            return run([f] * k + [0.0] * rest).x
+
+        f_b = breakaway_height(moves)
+        print(f"breakaway of a {k}-sample pulse at {f_b:.4f} N: moves {moves(f_b) * 1e6:5.2f} um "
+              f"there and {moves(f_b + ABOVE) * 1e6:5.2f} um at {ABOVE:g} N more")
 
 
 if __name__ == "__main__":

@@ -44,13 +44,9 @@ def add_max_steps(parser: argparse.ArgumentParser) -> None:
 
 def positive_int(text: str) -> int:
     """An argparse type: a whole number >= 1."""
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{text} must be >= 1")
-    return value
+    from papwc.limits import whole_number
+
+    return whole_number(1)(text)
 
 
 def run(args: argparse.Namespace) -> int:

@@ -1,0 +1,23 @@
+"""The command line of an analysis that takes one count (``python -m papwc.analysis.X``)."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Sequence
+
+from papwc.limits import whole_number
+
+__all__ = ["parse_count"]
+
+
+def parse_count(argv: Sequence[str] | None, prog: str, description: str, option: str,
+                default: int, high: int, what: str) -> int:
+    """The count given as ``option N`` (1 to high, else ``default``) in ``argv``.
+
+    Anything else, or a count that is not a whole number in 1..high, is refused in one line
+    (exit 2).
+    """
+    parser = argparse.ArgumentParser(prog=prog, description=description)
+    parser.add_argument(option, type=whole_number(1, high), default=default, dest="count",
+                        help=f"{what} (1 to {high}, default {default})")
+    return parser.parse_args(argv).count

@@ -1,0 +1,32 @@
+"""The command line of the analyses that take one count."""
+
+from __future__ import annotations
+
+import pytest
+
+from papwc.analysis import drive_state, scatter
+from papwc.analysis.counts import parse_count
+
+
+@pytest.mark.parametrize("main, option, high", [
+    (scatter.main, "--repeats", scatter.REPEATS_MAX),
+    (drive_state.main, "--moves", drive_state.MOVES_MAX),
+])
+@pytest.mark.parametrize("value, said", [("0", "0 is outside 1..{high}"),
+                                         ("2.5", "'2.5' is not a whole number"),
+                                         ("{above}", "{above} is outside 1..{high}")])
+def test_a_bad_count_is_refused_in_one_line(capsys, main, option, high, value, said):
+    value = value.format(above=high + 1)
+    with pytest.raises(SystemExit) as stop:
+        main([option, value])
+    assert stop.value.code == 2
+    last = capsys.readouterr().err.strip().splitlines()[-1]
+    assert last.endswith(f"argument {option}: " + said.format(high=high, above=high + 1))
+
+
+def test_a_count_in_range_is_taken_and_its_absence_gives_the_default():
+    args = ("prog", "what it does", "--n", 7, 10, "things")
+    assert parse_count(["--n", "10"], *args) == 10
+    assert parse_count([], *args) == 7
+    with pytest.raises(SystemExit):
+        parse_count(["--other", "1"], *args)
