@@ -9,13 +9,13 @@ from papwc.analysis import scatter
 
 
 def test_the_same_pulse_scatters_on_random_stiction_and_not_without_it():
-    base, _ = scatter.table()
+    base, T = scatter.table()
     stribeck = {**base, "v_s": 5e-3, "seed": 1}
     # Stribeck alone: the same pulse from rest moves the same every time
-    plain = scatter.repeated_pulse(stribeck, 150.0, 20)
+    plain = scatter.repeated_pulse(stribeck, 150.0, 20, T)
     assert max(plain) > 1e-6 and max(plain) - min(plain) < 1e-12
     # with the breakaway redrawn at every stop it scatters by more than 1.5 about its median
-    moved = scatter.repeated_pulse({**stribeck, "f_s_spread": 0.15}, 150.0, 60)
+    moved = scatter.repeated_pulse({**stribeck, "f_s_spread": 0.15}, 150.0, 60, T)
     assert all(d > scatter.MOVED for d in moved)
     assert max(moved) > 1.5 * statistics.median(moved) > 1.5 * min(moved)
 

@@ -24,6 +24,7 @@ from collections.abc import Mapping, Sequence
 from papwc.analysis.counts import parse_count
 from papwc.analysis.ringing import flexible_plant
 from papwc.model.dynamics import Plant
+from papwc.model.pulse import bisect_increasing
 
 __all__ = ["MODELS", "landings", "main"]
 
@@ -41,9 +42,9 @@ RING_FORCE = 200.0
 STEP = 30e-6
 #: Time at rest after each pulse, s.
 REST = 0.3
-#: Bisection of the height: interval (N) and steps.
+#: Bisection of the height: interval and the bracket's width it stops at (30 halvings), N.
 HEIGHT_RANGE = (0.0, 300.0)
-BISECTIONS = 30
+HEIGHT_TOL = (HEIGHT_RANGE[1] - HEIGHT_RANGE[0]) / 2**30
 #: Default and largest number of moves.
 MOVES = 4
 MOVES_MAX = 50
@@ -85,13 +86,8 @@ class _Pair:
         lo, hi = HEIGHT_RANGE
         if self.model_move(hi, rest) < target:
             return hi
-        for _ in range(BISECTIONS):
-            mid = 0.5 * (lo + hi)
-            if self.model_move(mid, rest) < target:
-                lo = mid
-            else:
-                hi = mid
-        return hi
+        return bisect_increasing(lambda f: self.model_move(f, rest), target, lo, hi,
+                                 HEIGHT_TOL)[1]
 
 
 def landings(scale: Mapping[str, float], moves: int) -> list[float]:

@@ -26,6 +26,7 @@ import tomllib
 from collections.abc import Callable, Sequence
 
 from papwc.model.dynamics import Plant
+from papwc.model.pulse import bisect_increasing
 from papwc.resources import scenario_file
 
 __all__ = ["breakaway_height", "flexible_plant", "main", "spring_force"]
@@ -75,13 +76,10 @@ def breakaway_height(moves: Callable[[float], float]) -> float:
     lo, hi = THRESHOLD_RANGE
     if not moves(hi) > 0.0:
         return math.nan
-    while hi - lo > THRESHOLD_TOL:
-        mid = 0.5 * (lo + hi)
-        if moves(mid) > 0.0:
-            hi = mid
-        else:
-            lo = mid
-    return hi
+    if moves(lo) > 0.0:
+        return lo
+    # the indicator "it moved" is non-decreasing in the height: 0 below, 1 from breakaway
+    return bisect_increasing(lambda f: float(moves(f) > 0.0), 0.5, lo, hi, THRESHOLD_TOL)[1]
 
 
 def main(argv: Sequence[str] | None = None) -> None:

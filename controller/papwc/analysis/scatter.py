@@ -52,10 +52,9 @@ def table() -> tuple[dict[str, float], float]:
     return {k: float(v) for k, v in data["plant"].items()}, float(data["maneuver"]["T"])
 
 
-def repeated_pulse(params: dict[str, float], f_p: float, repeats: int) -> list[float]:
-    """Displacements (m) of ``repeats`` one-sample pulses of height f_p (N), each from rest."""
+def repeated_pulse(params: dict[str, float], f_p: float, repeats: int, T: float) -> list[float]:
+    """Displacements (m) of ``repeats`` pulses of one sample T (s) at f_p (N), each from rest."""
     plant = Plant(params)
-    _, T = table()
     rest = round(REST / T)
     out = []
     for _ in range(repeats):
@@ -85,7 +84,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         params = {**base, **fields, "seed": SEED}
         print(name)
         for f_p in HEIGHTS:
-            moved = [d * 1e6 for d in repeated_pulse(params, f_p, repeats) if d > MOVED]
+            moved = [d * 1e6 for d in repeated_pulse(params, f_p, repeats, T) if d > MOVED]
             if not moved:
                 print(f"  {f_p:5.1f} N: moved 0 of {repeats}")
                 continue

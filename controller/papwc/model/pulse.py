@@ -111,7 +111,7 @@ def pulse_displacement(f_p: float, t_p: float, m: float, f_c: float, c: float) -
 
 
 def bisect_increasing(
-    f: Callable[[float], float], target: float, lo: float, hi: float
+    f: Callable[[float], float], target: float, lo: float, hi: float, tol: float = 0.0
 ) -> tuple[float, float]:
     """Bracket of the root of ``f(x) = target`` for ``f`` non-decreasing, to adjacent floats.
 
@@ -123,13 +123,18 @@ def bisect_increasing(
         The value sought.
     lo, hi : float
         Finite bracket with ``f(lo) < target <= f(hi)``.
+    tol : float
+        The halving stops once ``hi - lo <= tol`` (0: at adjacent floats). For an ``f``
+        that costs a simulation, where a bracket of that width is enough.
 
     Returns
     -------
     (lo, hi) : (float, float)
-        Adjacent (or equal) floats with ``f(lo) < target <= f(hi)``.
+        Floats with ``f(lo) < target <= f(hi)``, adjacent (or equal), or within tol.
     """
     for _ in range(4096):  # a float interval halves to adjacent floats in < 2100 steps
+        if hi - lo <= tol:
+            break
         mid = 0.5 * (lo + hi)
         if not lo < mid < hi:
             break
