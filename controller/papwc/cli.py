@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from collections.abc import Callable
 
 from papwc import __version__
 from papwc.errors import PapwcError
@@ -43,12 +44,22 @@ def main(argv: list[str] | None = None) -> int:
     input (a file, a field, an option); 130 interrupted (Ctrl-C).
     """
     args = make_parser().parse_args(argv)
-    name = f"papwc {args.command}"
+    return run_command(f"papwc {args.command}", lambda: args._run(args))
+
+
+def run_command(name: str, run: Callable[[], int | None]) -> int:
+    """Run a command's body ``run``; return its exit code, its failures each in one line.
+
+    ``name`` opens the line on standard error (``papwc run``, ``python -m
+    papwc.analysis.ringing``). Exit codes as :func:`main`'s: a :class:`PapwcError` its own
+    (2 by default), Ctrl-C 130, an operating-system error (also standard output closed or
+    full) or no memory 1. ``SystemExit`` (argparse's refusals) passes through.
+    """
     stdout = sys.stdout
     if stdout is not None:
         sys.stdout = _Stdout(stdout)
     try:
-        code = int(args._run(args) or 0)
+        code = int(run() or 0)
         if sys.stdout is not None:
             sys.stdout.flush()
         return code

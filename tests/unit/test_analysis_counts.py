@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 import pytest
 
 from papwc.analysis import drive_state, scatter
@@ -30,3 +34,28 @@ def test_a_count_in_range_is_taken_and_its_absence_gives_the_default():
     assert parse_count([], *args) == 7
     with pytest.raises(SystemExit):
         parse_count(["--other", "1"], *args)
+
+
+def _interrupted() -> int:
+    print("a line before")
+    raise KeyboardInterrupt
+
+
+def test_an_analysis_interrupted_says_so_in_one_line_and_keeps_what_it_printed(capsys):
+    from papwc.cli import run_command
+
+    assert run_command("python -m papwc.analysis.scatter", _interrupted) == 130
+    out, err = capsys.readouterr()
+    assert out == "a line before\n"
+    assert err == "python -m papwc.analysis.scatter: interrupted\n"
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
+def test_an_analysis_on_a_full_device_says_so_in_one_line():
+    with open("/dev/full", "w") as full:
+        done = subprocess.run([sys.executable, "-m", "papwc.analysis.scatter", "--repeats", "1"],
+                              stdout=full, stderr=subprocess.PIPE, text=True, timeout=120)
+    assert done.returncode == 1
+    assert done.stderr.splitlines() == [
+        "python -m papwc.analysis.scatter: error: cannot write to standard output: "
+        "No space left on device"]

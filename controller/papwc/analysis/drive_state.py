@@ -127,4 +127,8 @@ def main(argv: Sequence[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+
+    from papwc.cli import run_command
+
+    sys.exit(run_command("python -m papwc.analysis.drive_state", main))

@@ -129,4 +129,8 @@ def main(argv: Sequence[str] | None = None) -> None:
 
 
 if __name__ == "__main__":
-    main()
+    import sys
+
+    from papwc.cli import run_command
+
+    sys.exit(run_command("python -m papwc.analysis.ringing", main))
