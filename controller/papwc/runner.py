@@ -49,6 +49,9 @@ def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> P
         if not path.is_file():
             what = "is not a file" if path.exists() else "does not exist"
             raise FmuError(f"plant FMU {str(path)!r} {what}")
+        from papwc.master.fmu import check_fmu
+
+        check_fmu(path, where=f"plant FMU {str(path)!r}")
         return path
     from papwc.fmubuild.fmus import current_fmu
 

@@ -160,3 +160,40 @@ def test_a_refused_step_keeps_the_rows_before_it(ssp, tmp_path, capsys) -> None:
     assert "differs from the sample period T = 0.01 s" in err
     rows = list(csv.reader((out / "ClosedLoop.csv").read_text().splitlines()))
     assert len(rows) == 2 and rows[1][0] == "0.0"  # the values after initialization
+
+
+@pytest.mark.parametrize(("name", "value", "want"), [
+    ("max_pulses", "4294967297",
+     "controller.max_pulses = 4294967297: must satisfy 1 <= max_pulses <= 1000000 (the FMU's "
+     "declared range)"),
+    ("seed", "99999999999999999999",
+     "plant.seed = 99999999999999999999: must satisfy 0 <= seed <= 2147483647 (the FMU's "
+     "declared range)"),
+    ("seed", "-1", "plant.seed = -1: must satisfy 0 <= seed <= 2147483647"),
+])
+def test_an_integer_binding_outside_its_range_is_refused_not_wrapped(
+        name, value, want, ssp, tmp_path, capsys) -> None:
+    """Issue 27: an Integer does not wrap modulo 2**32 (max_pulses = 4294967297 ran with 1)."""
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [(
+        rf'(<ssv:Parameter name="{name}">\s*<ssv:Integer) value="[0-9]+"',
+        rf'\1 value="{value}"')])
+    line = refused(capsys, tmp_path, bad)
+    assert f'<ssv:Parameter name="{name}">' in line and want in line, line
+
+
+@pytest.mark.parametrize(("attribute", "value"), [
+    ("stopTime", "1.7e308"), ("startTime", "-1.7e308"), ("stopTime", "inf"),
+    ("startTime", "nan")])
+def test_default_experiment_times_are_checked_before_arithmetic(attribute, value, ssp,
+                                                                tmp_path, capsys) -> None:
+    """Issue 27: times of +-1.7e308 gave an OverflowError traceback."""
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [(rf'{attribute}="[0-9.]+"',
+                                               f'{attribute}="{value}"')])
+    line = refused(capsys, tmp_path, bad)
+    assert "<ssd:DefaultExperiment>" in line
+    assert f"{attribute} = '{value}' s: must be a finite number within -1e+09..1e+09 s" in line
+
+
+def test_a_stop_and_step_of_overflowing_steps_are_refused(ssp, tmp_path, capsys) -> None:
+    line = refused(capsys, tmp_path, ssp, "--stop", "1e308", "--step", "1e-300")
+    assert "= inf steps; at most 10000000" in line, line

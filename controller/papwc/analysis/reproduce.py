@@ -136,8 +136,8 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
     scenario = load_scenario(path)
     extra_scenarios = [] if scenario_path else [load_scenario(scenario_file(name))
                                                 for name in EXTRA_SCENARIOS]
-    make_folder(out)
     fmu = ensure_plant_fmu(fmu, out)
+    make_folder(out)
     # Results go to disk as they come: runs/ per controller (see papwc.runner), the
     # figures and tables at the end; INCOMPLETE marks the folder until then.
     for name in OUTPUTS:

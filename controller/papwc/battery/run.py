@@ -154,14 +154,13 @@ def run_battery(
     fmu = Path(fmu)
     if not fmu.is_file():
         raise BatteryError(f"plant FMU {str(fmu)!r} does not exist")
-    from fmpy import read_model_description
+    from papwc.errors import FmuError
+    from papwc.master.fmu import check_fmu
 
-    try:
-        md = read_model_description(str(fmu))
-    except Exception as exc:  # noqa: BLE001 - fmpy raises plain Exceptions for broken files
-        raise BatteryError(f"{fmu}: not a readable FMU: {exc}") from exc
-    if md.coSimulation is None:
-        raise BatteryError(f"{fmu}: not a Co-Simulation FMU")
+    try:  # refused once, before any work, if it cannot be unpacked, read or loaded
+        md = check_fmu(fmu, where=f"plant FMU {str(fmu)!r}")
+    except FmuError as exc:
+        raise BatteryError(str(exc)) from None
     runs = plan_runs(batteries, max_runs=max_runs, max_steps=max_steps)
     digest = _sha256(fmu)
     key = result_key(md.guid)

@@ -23,7 +23,7 @@ from papwc.errors import FmuError, SspError
 from papwc.master.algorithm import FixedStepAlgorithm
 from papwc.master.execution import Execution
 from papwc.master.observers import VariableObserver
-from papwc.master.ssd import SspArchive, SspSystem, read_ssp
+from papwc.master.ssd import MAX_MEMBER_BYTES, SspArchive, SspSystem, read_ssp
 
 __all__ = ["SspRun", "read_ssp", "run_ssp"]
 
@@ -61,11 +61,11 @@ def _check_experiment(system: SspSystem, step: float | None, stop: float | None,
         raise SspError(f"{where}: step = {h!r} s: must be > 0")
     if not t1 > t0:
         raise SspError(f"{where}: stop time {t1!r} s: must be after the start time {t0!r} s")
-    n = round((t1 - t0) / h)
-    if n > MAX_STEPS:
-        raise SspError(f"{where}: ({t1!r} - {t0!r}) s / {h!r} s = {n} steps; at most "
+    steps = (t1 - t0) / h  # finite or inf, never an exception
+    if not steps <= MAX_STEPS:
+        raise SspError(f"{where}: ({t1!r} - {t0!r}) s / {h!r} s = {steps:.4g} steps; at most "
                        f"{MAX_STEPS}")
-    return t0, t1, h, max(n, 1)
+    return t0, t1, h, max(round(steps), 1)
 
 
 def run_ssp(
@@ -126,8 +126,9 @@ def run_ssp(
         try:
             for name, component in system.components.items():
                 fmu_path = Path(tmp) / f"{len(slaves)}.fmu"
-                fmu_path.write_bytes(archive.read(component.source, component.element))
-                slave = FmuSlave(fmu_path, name)
+                where = f"{system.path}: component {name!r} ({component.source})"
+                fmu_path.write_bytes(archive.read(component.source, where, MAX_MEMBER_BYTES))
+                slave = FmuSlave(fmu_path, name, where=where)
                 slaves[name] = slave
                 slave.set_start_values(component.start_values)
                 execution.add_slave(slave)
@@ -145,6 +146,7 @@ def run_ssp(
                 execution.finish()
             return result
         finally:
+            archive.close()
             execution.close()
             for slave in slaves.values():
                 if slave not in execution.slaves:
