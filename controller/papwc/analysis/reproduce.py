@@ -15,6 +15,7 @@ from papwc.errors import ScenarioError  # noqa: E402
 from papwc.master import RunResult, summarize  # noqa: E402
 from papwc.model.pulse import b_coulomb, pulse_displacement, pulse_width  # noqa: E402
 from papwc.output import (  # noqa: E402
+    lock_folder,
     make_folder,
     remove_file,
     save_figure,
@@ -138,6 +139,13 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
                                                 for name in EXTRA_SCENARIOS]
     fmu = ensure_plant_fmu(fmu, out)
     make_folder(out)
+    with lock_folder(out, "papwc reproduce"):
+        return _reproduce(out, path, scenario, extra_scenarios, fmu, readings, workers)
+
+
+def _reproduce(out: Path, path: Path, scenario, extra_scenarios: list, fmu: Path,
+               readings: bool, workers: int | None) -> int:
+    """:func:`reproduce` once its inputs are checked and its folder locked."""
     # Results go to disk as they come: runs/ per controller (see papwc.runner), the
     # figures and tables at the end; INCOMPLETE marks the folder until then.
     for name in OUTPUTS:
@@ -148,7 +156,7 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
     scenarios = [scenario, *extra_scenarios]
     folder = ResultsFolder(out / "runs", [label for s in scenarios for label in s.labels],
                            {label: s.warnings_of(label) for s in scenarios for label in s.labels},
-                           what="papwc reproduce")
+                           what="papwc reproduce", own=True)
     folder.start()
     print(f"running {path} ({len(scenario.controllers)} controllers x "
           f"{scenario.maneuver.iterations} iterations) on {fmu} ...")

@@ -213,10 +213,17 @@ def run_battery(
             run_seconds = time.perf_counter() - run_start
         records = journal.records
     except KeyboardInterrupt:
+        journal.release()
         raise BatteryInterrupted(len(journal.records), len(runs), journal.path) from None
+    except BaseException:
+        journal.release()
+        raise
     finally:
-        journal.close()
-    files = write_outputs(out, batteries, runs, records, digest)
+        journal.close(release=False)  # the folder stays locked while the results are written
+    try:
+        files = write_outputs(out, batteries, runs, records, digest)
+    finally:
+        journal.release()
     failed = [(s.battery, s.run_id, records[(s.battery, s.run_id)]["message"]) for s in runs
               if records[(s.battery, s.run_id)]["status"] != "ok"]
     return BatteryOutcome(len(runs), computed, failed, files, time.perf_counter() - start,
