@@ -249,15 +249,13 @@ def test_two_cosims_into_one_folder_the_second_is_refused(ssp, tmp_path, capsys)
 
     out = tmp_path / "out"
     out.mkdir()
-    held = lock_folder(out, "papwc run")
-    try:
+    with lock_folder(out, "papwc run"):
         assert main(["cosim", str(ssp), "--out", str(out)]) == 1
-    finally:
-        held.close()
+        assert sorted(p.name for p in out.iterdir()) == [".papwc.lock"]  # (the other's)
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "papwc run (process" in err[0], err
     assert "is writing into this folder" in err[0]
-    assert sorted(p.name for p in out.iterdir()) == [".papwc.lock"]  # (the other's)
+    assert list(out.iterdir()) == []
 
 
 def test_a_link_planted_as_the_csvs_temporary_file_is_refused(ssp, tmp_path, capsys) -> None:

@@ -42,6 +42,27 @@ _LOG_KEPT = 200
 _C_TYPES = {"Real": c_double, "Integer": c_int, "Enumeration": c_int, "Boolean": c_int}
 
 
+class _Log(deque):
+    """The kept log messages of an instance, and how many were ever logged (``count``)."""
+
+    def __init__(self) -> None:
+        super().__init__(maxlen=_LOG_KEPT)
+        self.count = 0
+
+    def append(self, text: str) -> None:
+        self.count += 1
+        super().append(text)
+
+    def since(self, count: int) -> list[str]:
+        """The messages logged after the ``count``-th (those still kept)."""
+        n = min(self.count - count, len(self))
+        return list(self)[len(self) - n:] if n > 0 else []
+
+
+def _refusals(messages: list[str]) -> list[str]:
+    return [m for m in messages if m.startswith(("[Error]", "[Fatal]"))]
+
+
 def _text(value: Any) -> str:
     """A logger argument (bytes, str or NULL) as text."""
     if value is None:
@@ -135,7 +156,7 @@ class FmuSlave:
         #: What opens every message about the file (the path, or an SSP's component).
         self.where = where or f"FMU {str(self.fmu_path)!r}"
         self.values: list[Any] = []
-        self.log: deque[str] = deque(maxlen=_LOG_KEPT)
+        self.log: _Log = _Log()
         self.time = 0.0
         self._fmu = None
         self._snapshot = None
@@ -143,6 +164,7 @@ class FmuSlave:
         self._watched: list[str] = []
         self._owns_dir = False
         self._fatal = False
+        self._initialized_once = False
         self.restart_input = restart_input
         self._restarts = 0
         # Everything that opens the file goes through papwc.master.archive: a
@@ -268,6 +290,19 @@ class FmuSlave:
             held[:] = [math.nan]
 
     def _set_now(self, values: Mapping[str, Any]) -> None:
+        """Set ``values`` now; FmuError if the FMU logs an Error or Fatal while doing it.
+
+        (pythonfmu's FMUs return fmi2OK for a refused set; the refusal is in their log.)
+        """
+        before = self.log.count
+        self._set_values(values)
+        refused = _refusals(self.log.since(before))
+        if refused:
+            names = ", ".join(values)
+            raise FmuError(f"{self.name}: setting {names} at t = {self.time!r} s was refused: "
+                           + "; ".join(refused))
+
+    def _set_values(self, values: Mapping[str, Any]) -> None:
         self._forget_inputs()
         for name, value in values.items():
             var = self.vars[name]
@@ -400,16 +435,23 @@ class FmuSlave:
             exitInitializationMode (FrictionPlant.fmu and PulseController.fmu
             refuse invalid parameters that way).
         """
+        if self._initialized_once:
+            # FMI 2.0 initializes an instance once: a new one takes the start values (an
+            # initialized one refuses parameters, which pythonfmu's FMUs only log).
+            self._free_snapshot()
+            self._call("fmi2FreeInstance",
+                       lambda: self._fmu.fmi2FreeInstance(self._fmu.component))
+            self._instantiate()
+        self._initialized_once = True
         self.time = float(start_time)
         self._forget_inputs()
         self._call("fmi2SetupExperiment", lambda: self._fmu.setupExperiment(
             startTime=start_time))
         self._set_now(self._start)
         self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
-        n_log = len(self.log)
+        before = self.log.count
         self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
-        new = list(self.log)[n_log:] if n_log < _LOG_KEPT else list(self.log)
-        refused = [m for m in new if m.startswith(("[Error]", "[Fatal]"))]
+        refused = _refusals(self.log.since(before))
         if refused:
             raise FmuError(f"{self.name}: fmi2ExitInitializationMode at t = {self.time!r} s "
                            "refused the parameters: " + "; ".join(refused))
@@ -435,11 +477,14 @@ class FmuSlave:
             return
         if self._snapshot is not None:
             self.time = float(start_time)
+            before = self.log.count
             self._call("fmi2SetFMUstate", lambda: self._fmu.setFMUstate(self._snapshot))
+            refused = _refusals(self.log.since(before))
+            if refused:
+                raise FmuError(f"{self.name}: fmi2SetFMUstate at t = {self.time!r} s was "
+                               "refused: " + "; ".join(refused))
             self._refresh()
             return
-        self._call("fmi2FreeInstance", lambda: self._fmu.fmi2FreeInstance(self._fmu.component))
-        self._instantiate()
         self.initialize(start_time)
 
     def do_step(self, t: float, h: float) -> None:
