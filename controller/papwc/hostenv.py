@@ -76,7 +76,14 @@ def host_environment(platform: str | None = None) -> str:
     """
     platform = platform or sys.platform
     if platform.startswith("linux"):
-        return f"export LD_PRELOAD={libpython()}"
+        import shlex
+
+        path = str(libpython())
+        if any(c in path for c in " :\t\n"):
+            # the dynamic loader splits LD_PRELOAD at spaces and colons, quoted or not
+            raise PapwcError(f"{path!r}: LD_PRELOAD cannot hold a path with a space or colon; "
+                             "link the library to a path without them and preload the link")
+        return f"export LD_PRELOAD={shlex.quote(path)}"
     if platform.startswith(("win32", "cygwin")):
         folder = Path(sys.base_prefix)
         if not (folder / "python3.dll").is_file():
