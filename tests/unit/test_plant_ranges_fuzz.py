@@ -36,7 +36,6 @@ from papwc.model.plant import (
 )
 from papwc.model.variables import by_name
 
-pytestmark = pytest.mark.slow
 
 PLANT = by_name(PLANT_PARAMETERS)
 EXAMPLES = int(os.environ.get("PAPWC_FUZZ_EXAMPLES", "300"))
@@ -68,6 +67,7 @@ def plants_at_edges(draw) -> dict:
             else PLANT_DEFAULTS[name] for name in SCENARIO_PLANT_FIELDS}
 
 
+@pytest.mark.slow
 @settings(max_examples=EXAMPLES, deadline=None, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.filter_too_much])
 @given(params=plants_at_edges(), h=st.sampled_from((0.01, 1e-3)))
@@ -104,3 +104,29 @@ def test_the_settings_that_overflowed_or_took_seconds_are_refused(values, name, 
     found = plant_problems({**PLANT_DEFAULTS, **values})
     assert [n for n, _ in found] == [name], found
     assert words in found[0][1], found
+
+
+@pytest.mark.parametrize(("plant", "words"), [
+    ("x_resolution = 5e-324", "field 'x_resolution': x_resolution = 5e-324 m: must be 0 (none) "
+     "or >= 1e-12 m"),
+    ("tau_u = 5e-324", "field 'tau_u': tau_u = 5e-324 s: must be 0 (none) or >= 1e-06 s"),
+    ("v_s = 1e-12\ndelta_s = 10.0", "field 'v_s': v_s = 1e-12 m/s: must be 0 (none) or >= "
+     "1e-06 m/s"),
+    ("m = 1e-6\nf_c = 0.001\nf_s = 130.0\nc = 0.0\nripple = 0.5",
+     "field 'm': m = 1e-06 kg: the breakaway force gives the mass f_s/m = 1.3e+08 m/s^2"),
+])
+@pytest.mark.parametrize("where", ["fmu", "physics"])
+def test_through_the_command_line_one_line_and_nothing_written(
+        plant, words, where, tmp_path, capsys) -> None:
+    from papwc.cli import main
+
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(f'name = "s"\n[plant]\n{plant}\n[[controller]]\nkind = "papwc"\n')
+    out = tmp_path / "out"
+    assert main(["run", str(scenario), "--out", str(out), "--plant", where]) == 2
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in captured.err, captured.err
+    assert lines[0].startswith(f"papwc run: error: {scenario}: [plant] ")
+    assert words in lines[0], lines[0]
+    assert not out.exists()
