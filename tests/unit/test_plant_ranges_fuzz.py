@@ -36,7 +36,6 @@ from papwc.model.plant import (
 )
 from papwc.model.variables import by_name
 
-
 PLANT = by_name(PLANT_PARAMETERS)
 EXAMPLES = int(os.environ.get("PAPWC_FUZZ_EXAMPLES", "300"))
 #: Most integrator steps and stick-slip events one accepted communication step may take.
