@@ -456,6 +456,8 @@ def plants(draw) -> dict:
             p[name] = 0.0
     if any(p.get(name, 0.0) > 0.0 for name in INTEGRATED):  # the integrated plant's bounds
         p["m"] = max(p["m"], p["f_s"] / ACCELERATION_MAX, p["c"] / DAMPING_RATE_MAX)
+    if p.get("m_d", 0.0) > 0.0:
+        p["c_t"] = min(p["c_t"], DAMPING_RATE_MAX / (1 / p["m"] + 1 / p["m_d"]) * (1 - 1e-9))
     return p
 
 

@@ -39,7 +39,7 @@ from papwc.model.variables import by_name
 PLANT = by_name(PLANT_PARAMETERS)
 EXAMPLES = int(os.environ.get("PAPWC_FUZZ_EXAMPLES", "300"))
 #: Most integrator steps and stick-slip events one accepted communication step may take.
-STEPS_MAX = 20_000
+STEPS_MAX = 5_000
 EVENTS_MAX = 1_000
 #: Forces applied, in units of max(f_s, m * 1 m/s^2): push, hold, release, reverse, nudge.
 FORCES = (0.0, 1.5, 1.5, 0.0, 0.0, -3.0, 0.0, 0.5, 0.0)
