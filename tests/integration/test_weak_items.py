@@ -108,3 +108,29 @@ def test_reproduce_of_another_scenario_claims_only_the_figures_it_wrote(
     assert wrote.startswith(f"wrote {out}/fig1.png, paper_numbers.csv")
     assert "fig3" not in wrote and "fig9" not in wrote
     assert "Figures: fig1.png (Eq. (3) and (4)); " in (out / "report.md").read_text()
+
+
+@pytest.mark.slow
+def test_sigterm_stops_a_run_as_ctrl_c_does(tmp_path, friction_plant_fmu) -> None:
+    """SIGTERM to ``papwc run``: between two steps, the finished controllers kept, the
+    folder marked incomplete, exit 143, no traceback."""
+    scenario = tmp_path / "long.toml"
+    scenario.write_text(GOOD.replace("duration = 0.5", "duration = 200.0")
+                        .replace("iterations = 1", "iterations = 3")
+                        + '[[controller]]\nkind = "pwc"\n')
+    out = tmp_path / "out"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "papwc.cli", "run", str(scenario), "--out", str(out), "--fmu",
+         str(friction_plant_fmu)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONPATH": str(PROJECT / "controller")})
+    deadline = time.monotonic() + 120
+    while not (out / "INCOMPLETE").is_file():
+        assert process.poll() is None and time.monotonic() < deadline
+        time.sleep(0.05)
+    time.sleep(0.5)
+    process.send_signal(signal.SIGTERM)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == 143, err
+    assert "Traceback" not in err
+    assert err.strip().splitlines()[-1] == "papwc run: terminated (SIGTERM)"
+    assert "terminated (SIGTERM)" in (out / "INCOMPLETE").read_text()
