@@ -134,3 +134,27 @@ def test_sigterm_stops_a_run_as_ctrl_c_does(tmp_path, friction_plant_fmu) -> Non
     assert "Traceback" not in err
     assert err.strip().splitlines()[-1] == "papwc run: terminated (SIGTERM)"
     assert "terminated (SIGTERM)" in (out / "INCOMPLETE").read_text()
+
+
+@pytest.mark.parametrize(("command", "hint"), [
+    ("run", "--max-steps"), ("reproduce", "--scenario with fewer iterations, --workers"),
+    ("battery", "--max-steps, --max-runs, --workers")])
+def test_out_of_memory_names_the_flags_of_the_command(command, hint, monkeypatch,
+                                                      capsys) -> None:
+    import papwc.cli
+
+    parser = papwc.cli.make_parser()
+    real = parser.parse_args
+
+    def parse(argv):
+        args = real(argv)
+        args._run = lambda args: (_ for _ in ()).throw(MemoryError)
+        return args
+
+    monkeypatch.setattr(papwc.cli, "make_parser", lambda: parser)
+    monkeypatch.setattr(parser, "parse_args", parse)
+    argv = {"run": ["run", "x.toml"], "reproduce": ["reproduce"],
+            "battery": ["battery", "x.toml"]}[command]
+    assert main(argv) == 1
+    assert capsys.readouterr().err.strip() == (
+        f"papwc {command}: error: out of memory; lower the work asked for (e.g. {hint})")

@@ -7,6 +7,9 @@ from pathlib import Path
 
 from papwc.commands import add_fmu_option
 
+#: What the out-of-memory message suggests lowering.
+MEMORY_HINT = "--scenario with fewer iterations, --workers"
+
 HELP = "run the paper's scenario on FrictionPlant.fmu, write figures 1, 3-9 and tables"
 EPILOG = """examples:
   papwc reproduce --out results/reproduce

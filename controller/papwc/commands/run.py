@@ -7,6 +7,9 @@ from pathlib import Path
 
 from papwc.commands import add_fmu_option
 
+#: What the out-of-memory message suggests lowering.
+MEMORY_HINT = "--max-steps"
+
 HELP = "run a scenario file (TOML) and write summary.csv, traces and plots"
 EPILOG = """examples:
   papwc run scenarios/paper.toml --out results/paper
