@@ -18,6 +18,7 @@ the model layer's restored state does.
 from __future__ import annotations
 
 import math
+import random
 import re
 import sys
 from pathlib import Path
@@ -29,7 +30,7 @@ from hypothesis import strategies as st
 
 from papwc.fmubuild.native_tables import plant_header, value_references
 from papwc.model.dynamics import STATE_FIELDS, Plant
-from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES
+from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES, plant_problems
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from native_lib import NativeLibrary, NativePlant, build_plant_library, compiler  # noqa: E402
@@ -183,3 +184,157 @@ def test_a_step_the_model_layer_refuses_is_refused(native: NativeLibrary) -> Non
     py, c = Plant(params), NativePlant(native, params)
     assert py.step(500.0, 1e300) == c.step(500.0, 1e300) == "the result would not be finite"
     assert native_view(c) == python_view(py)
+
+
+# --- the deviations -------------------------------------------------------------------------------
+
+TWO_PI = 2.0 * math.pi
+
+
+@st.composite
+def base_params(draw: st.DrawFn) -> dict[str, float]:
+    f_c = draw(st.floats(20.0, 150.0))
+    return {"m": draw(st.floats(50.0, 300.0)), "f_c": f_c,
+            "f_s": f_c * draw(st.floats(1.0, 1.6)), "c": draw(st.floats(0.0, 900.0))}
+
+
+def stribeck(draw: st.DrawFn) -> dict[str, float]:
+    return {"v_s": draw(st.floats(1e-4, 1e-2)),
+            "delta_s": draw(st.one_of(st.just(1.0), st.just(2.0), st.floats(1.0, 4.0)))}
+
+
+def lugre(draw: st.DrawFn, m: float) -> dict[str, float]:
+    # Stiff bristles cost the model layer many steps: at most a 2 kHz pre-sliding mode here.
+    sigma_0 = m * (TWO_PI * draw(st.floats(50.0, 2000.0))) ** 2
+    return {"sigma_0": sigma_0, "sigma_1": draw(st.floats(0.0, 2.0)) * math.sqrt(sigma_0 * m)}
+
+
+def ripple(draw: st.DrawFn) -> dict[str, float]:
+    return {"ripple": draw(st.floats(0.01, 0.5)), "ripple_period": draw(st.floats(1e-4, 1e-2)),
+            "ripple_phase": draw(st.floats(-TWO_PI, TWO_PI))}
+
+
+def stiction(draw: st.DrawFn, params: dict[str, float]) -> dict[str, float]:
+    spread = draw(st.floats(0.01, 0.3))
+    # The lowest breakaway force f_s*(1 - spread) stays >= f_c.
+    f_s = max(params["f_s"], params["f_c"] / (1.0 - spread))
+    while f_s * (1.0 - spread) < params["f_c"]:
+        f_s = math.nextafter(f_s, math.inf)
+    return {"f_s_spread": spread, "f_s": f_s, "seed": draw(st.integers(0, 2**31 - 1))}
+
+
+def noise(draw: st.DrawFn) -> dict[str, float]:
+    return {"noise_std": draw(st.floats(1e-9, 1e-5)), "seed": draw(st.integers(0, 2**31 - 1)),
+            "x_resolution": draw(st.sampled_from((0.0, 1e-9, 1e-6)))}
+
+
+def lag(draw: st.DrawFn) -> dict[str, float]:
+    return {"tau_u": draw(st.floats(1e-4, 0.05))}
+
+
+def flexible(draw: st.DrawFn, m: float) -> dict[str, float]:
+    m_d = draw(st.floats(5.0, 200.0))
+    mode = draw(st.floats(5.0, 300.0))  # Hz, with the table free
+    return {"m_d": m_d, "k_t": (TWO_PI * mode) ** 2 / (1.0 / m + 1.0 / m_d),
+            "c_t": draw(st.floats(0.0, 1000.0))}
+
+
+#: Deviation -> how its parameters are drawn (on top of drawn m, f_c, f_s, c).
+DEVIATIONS = ("stribeck", "lugre", "ripple", "stiction", "noise", "lag", "flexible",
+              "all_stick_slip", "all_lugre")
+
+
+@st.composite
+def deviation_params(draw: st.DrawFn, case: str) -> dict[str, float]:
+    p = draw(base_params())
+    if case in ("stribeck", "all_stick_slip", "all_lugre"):
+        p.update(stribeck(draw))
+    if case in ("lugre", "all_lugre"):
+        p.update(lugre(draw, p["m"]))
+    if case in ("ripple", "all_stick_slip", "all_lugre"):
+        p.update(ripple(draw))
+    if case in ("stiction", "all_stick_slip"):
+        p.update(stiction(draw, p))
+    if case in ("noise", "all_stick_slip", "all_lugre"):
+        p.update(noise(draw))
+    if case in ("lag", "all_stick_slip", "all_lugre"):
+        p.update(lag(draw))
+    if case in ("flexible", "all_stick_slip", "all_lugre"):
+        p.update(flexible(draw, p["m"]))
+    return p
+
+
+#: A force held over 1 to 4 steps: a pulse beyond breakaway, a rest, or a force below it.
+held_forces = st.tuples(
+    st.one_of(st.floats(-400.0, 400.0), st.just(0.0), st.floats(-140.0, 140.0)),
+    st.one_of(st.just(0.01), st.floats(1e-4, 0.03)),
+    st.integers(1, 4))
+
+
+@pytest.mark.parametrize("case", DEVIATIONS)
+def test_deviation_is_the_model_layer_bit_for_bit(native: NativeLibrary, case: str) -> None:
+    @settings(SETTINGS, max_examples=12)
+    @given(params=deviation_params(case), held=st.lists(held_forces, min_size=1, max_size=12),
+           copy_at=st.integers(0, 30))
+    def check(params: dict[str, float], held: list[tuple[float, float, int]],
+              copy_at: int) -> None:
+        assert not plant_problems(params), plant_problems(params)
+        plant = Plant(params)
+        assert not plant.is_eq1
+        steps = [(u, h) for u, h, n in held for _ in range(n)]
+        run_both(native, params, steps, copy_at)
+
+    check()
+
+
+#: Each deviation at the values of scenarios/realism.toml (tests/unit/test_plant_deviations.py),
+#: and all together.
+REALISM = {
+    "stribeck": {"v_s": 1e-3},
+    "stribeck_delta1": {"v_s": 2e-3, "delta_s": 1.0},
+    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
+    "lugre_light": {"sigma_0": 6.5e6, "sigma_1": 1e4, "v_s": 1e-3, "ripple": 0.1},
+    "ripple": {"ripple": 0.1, "ripple_period": 1e-3, "ripple_phase": 0.3},
+    "stiction": {"f_s_spread": 0.1, "seed": 3},
+    "noise": {"noise_std": 2e-7, "seed": 5, "x_resolution": 1e-7},
+    "lag": {"tau_u": 2e-3},
+    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
+    "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
+            "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "noise_std": 1e-7},
+}
+
+
+def realism_forces(seed: int, n: int) -> list[float]:
+    """Zero-order-hold forces (N): pulses above f_s, rests, forces below breakaway."""
+    rng = random.Random(seed)
+    out: list[float] = []
+    while len(out) < n:
+        kind = rng.random()
+        if kind < 0.3:
+            out += [rng.choice((-1.0, 1.0)) * rng.uniform(140.0, 300.0)] * rng.randint(1, 4)
+        elif kind < 0.65:
+            out += [0.0] * rng.randint(1, 8)
+        else:
+            out += [rng.uniform(-130.0, 130.0)] * rng.randint(1, 5)
+    return out[:n]
+
+
+@pytest.mark.parametrize("case", sorted(REALISM))
+def test_realism_run_is_the_model_layer_bit_for_bit(native: NativeLibrary, case: str) -> None:
+    """A long run per deviation that sticks, breaks away and slides many times."""
+    params = REALISM[case]
+    n = 150
+    steps = [(u, 0.01) for u in realism_forces(len(case), n)]
+    run_both(native, params, steps, n // 2)
+    plant = NativePlant(native, params)
+    stuck = moved = 0
+    for u, h in steps:
+        assert plant.step(u, h) is None
+        stuck += plant.state.v == 0.0
+        moved += plant.state.v != 0.0
+    # The run exercises both regimes (with LuGre the mass creeps instead of sticking).
+    assert moved > 10 and (stuck > 10 or "sigma_0" in params), (stuck, moved)
+    if "f_s_spread" in params:
+        assert plant.state.stick_draws > 5
+    if "noise_std" in params:
+        assert plant.state.noise_draws == n + 1
