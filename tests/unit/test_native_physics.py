@@ -338,3 +338,71 @@ def test_realism_run_is_the_model_layer_bit_for_bit(native: NativeLibrary, case:
         assert plant.state.stick_draws > 5
     if "noise_std" in params:
         assert plant.state.noise_draws == n + 1
+
+
+# --- the rules between parameters -----------------------------------------------------------------
+
+
+def edges(var: Any) -> st.SearchStrategy[float]:
+    """A parameter's value at or next to the ends of its range, its default or within."""
+    if var.type == "Integer":
+        return st.sampled_from((var.min, var.max, var.default)).map(int)
+    lo, hi = var.min, var.max
+    values = [var.default, lo, math.nextafter(lo, math.inf), math.nextafter(hi, -math.inf),
+              0.5 * (lo + hi), lo + 1e-3 * (hi - lo)]
+    if not var.max_open:
+        values.append(hi)
+    if var.min_open:
+        values.remove(lo)
+    return st.one_of(st.sampled_from(values), st.floats(lo, hi, exclude_max=var.max_open))
+
+
+def near(value: float, draw: st.DrawFn) -> float:
+    """``value`` or a float next to it."""
+    return draw(st.sampled_from((value, math.nextafter(value, math.inf),
+                                 math.nextafter(value, -math.inf))))
+
+
+@st.composite
+def parameter_sets(draw: st.DrawFn) -> dict[str, float]:
+    """Parameters each valid on its own, often on the boundary of a rule between them."""
+    # Each parameter at its default half of the time, so that every rule is reached.
+    p = {var.name: draw(st.one_of(st.just(var.default), edges(var))) for var in PLANT_PARAMETERS}
+    rule = draw(st.sampled_from(("none", "f_s", "spread", "presliding", "flexible")))
+    if rule != "f_s" and draw(st.booleans()):
+        p["f_s"] = max(p["f_s"], p["f_c"])
+    if rule == "f_s":
+        p["f_s"] = near(p["f_c"], draw)
+    elif rule == "spread" and p["f_s_spread"] > 0.0:
+        p["f_c"] = near(p["f_s"] * (1.0 - p["f_s_spread"]), draw)
+    elif rule == "presliding":
+        p["sigma_0"] = near(p["m"] * (2.0 * math.pi * 1e4) ** 2, draw)
+    elif rule == "flexible" and p["m_d"] > 0.0:
+        p["k_t"] = near((2.0 * math.pi * 1e4) ** 2 / (1.0 / p["m"] + 1.0 / p["m_d"]), draw)
+    by_name = {var.name: var for var in PLANT_PARAMETERS}
+    return {name: value for name, value in p.items() if by_name[name].check(value) is None}
+
+
+@settings(SETTINGS, max_examples=400)
+@given(values=parameter_sets())
+def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary,
+                                                      values: dict[str, float]) -> None:
+    full = {**PLANT_DEFAULTS, **values}
+    found = plant_problems(full)
+    assert native.check(full) == (found[0][1] if found else None)
+
+
+@pytest.mark.parametrize("values", [
+    {"f_c": 140.0},
+    {"f_s_spread": 0.5},
+    {"sigma_0": 1e6, "f_c": 0.0, "f_s": 0.0},
+    {"sigma_0": 1e6, "f_s_spread": 0.1, "f_c": 50.0},
+    {"m_d": 10.0},
+    {"sigma_0": 1e12, "m": 1.0},
+    {"m_d": 1e-3, "k_t": 1e12},
+])
+def test_each_rule_is_refused_with_the_model_layers_words(native: NativeLibrary,
+                                                          values: dict[str, float]) -> None:
+    found = plant_problems({**PLANT_DEFAULTS, **values})
+    assert found
+    assert native.check(values) == found[0][1]
