@@ -1170,6 +1170,21 @@ int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t
     return 0;
 }
 
+int fp_state_check(const FpState *s, char *msg, size_t len)
+{
+    char a[40], text[120];
+#define FP_STATE_FINITE(name, type) \
+    if ((type) == FP_REAL && !isfinite((double)s->name)) { \
+        py_repr((double)s->name, a, sizeof a); \
+        snprintf(text, sizeof text, "plant state field %s = %s is not finite", #name, a); \
+        say(msg, len, text); \
+        return 1; \
+    }
+    FP_STATE_FIELDS(FP_STATE_FINITE)
+#undef FP_STATE_FINITE
+    return 0;
+}
+
 void fp_outputs(const FpState *s, const FpParams *p, FpOutputs *y)
 {
     y->x = s->x;

@@ -179,6 +179,21 @@ def test_a_bad_input_or_step_is_refused_and_the_state_kept(
     assert native_view(plant) == before
 
 
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
+@pytest.mark.parametrize("field", [f for f in STATE_FIELDS if not f.endswith("_draws")])
+def test_a_state_with_a_field_not_finite_is_refused_as_set_state_does(
+        native: NativeLibrary, field: str, value: float) -> None:
+    plant = NativePlant(native, {"v_s": 1e-3})
+    assert plant.step(200.0, 0.01) is None
+    assert native.state_check(plant.state) is None
+    state = plant.copy_state()
+    setattr(state, field, value)
+    py = Plant({"v_s": 1e-3})
+    with pytest.raises(ValueError) as refused:
+        py.set_state({**py.state(), field: value})
+    assert native.state_check(state) == str(refused.value)
+
+
 def test_a_step_the_model_layer_refuses_is_refused(native: NativeLibrary) -> None:
     params = {"m": 1e-6, "c": 1e9}
     py, c = Plant(params), NativePlant(native, params)
@@ -383,7 +398,7 @@ def parameter_sets(draw: st.DrawFn) -> dict[str, float]:
     return {name: value for name, value in p.items() if by_name[name].check(value) is None}
 
 
-@settings(SETTINGS, max_examples=400)
+@settings(SETTINGS, max_examples=250)
 @given(values=parameter_sets())
 def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary,
                                                       values: dict[str, float]) -> None:
