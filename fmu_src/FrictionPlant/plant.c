@@ -299,17 +299,26 @@ typedef struct {
     double rate_gain;  /* ActuatorLag.rate_gain = 1/tau_u, 1/s */
     int n, iz, ixd, ivd, ifa;
     double atol[FP_N_MAX], rtol[FP_N_MAX];
-    int fail;          /* Python would have raised: the step is refused */
+    int fail;          /* the step is refused */
+    const char *kind;  /* the exception Python raised there (NULL: a reason it returned) */
+    int bare;          /* Plant._integrate caught the exception: its text alone is the reason */
     char why[200];
 } Model;
 
-static void fail(Model *M, const char *text)
+/* Refuse the step: Python raised the exception `kind` with `text` here (kind NULL: Python
+ * returned `text` as the reason). The first failure is kept. */
+static void fail(Model *M, const char *kind, const char *text)
 {
     if (!M->fail) {
         M->fail = 1;
+        M->kind = kind;
         snprintf(M->why, sizeof M->why, "%s", text);
     }
 }
+
+#define ZERO_DIVISION "ZeroDivisionError"
+#define ARITHMETIC "ArithmeticError"
+#define VALUE "ValueError"
 
 /* Plant.__init__ and Plant._layout: which effects are present, the state vector. */
 static void model_init(Model *M, const FpParams *p, FpState *w)
@@ -431,7 +440,7 @@ static void ripple_factor(Model *M, double x, double *r, double *r_x)
     const FpParams *p = M->p;
     double arg = M->ripple_k * x + p->ripple_phase;
     if (isinf(arg))
-        fail(M, "the integration failed: ValueError: math domain error");
+        fail(M, VALUE, "math domain error");
     *r = 1.0 + p->ripple * sin(arg);
     *r_x = p->ripple * M->ripple_k * cos(arg);
 }
@@ -513,7 +522,7 @@ static void rates(Model *M, const double *y, double u, double s, double *out)
         sgn = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
         level(M, x, v, sgn, &g, &g_x, &g_v);
         if (g == 0.0)
-            fail(M, "the integration failed: ZeroDivisionError: float division by zero");
+            fail(M, ZERO_DIVISION, "float division by zero");
         z = y[M->iz];
         z_rate = v - p->sigma_0 * fabs(v) * z / g;
         out[0] = v;
@@ -573,7 +582,7 @@ static void jacobian(Model *M, const double *y, double u, double s, double jac[]
         s0 = p->sigma_0;
         w = fabs(v);
         if (g == 0.0)
-            fail(M, "the integration failed: ZeroDivisionError: float division by zero");
+            fail(M, ZERO_DIVISION, "float division by zero");
         inv_g = 1.0 / g;
         dz_x = s0 * w * z * g_x * inv_g * inv_g;
         dz_v = 1.0 - s0 * z * (sgn - w * g_v * inv_g) * inv_g;
@@ -707,7 +716,7 @@ static int rodas4_step(Model *M, const double *y, const double *f0, double jac[]
     double *k1 = stages[0], *k2 = stages[1], *k3 = stages[2], *k4 = stages[3], *k5 = stages[4];
     double diag, inv_h, c21;
     if (GAMMA * h == 0.0 || h == 0.0) {
-        fail(M, "float division by zero");
+        fail(M, ZERO_DIVISION, "float division by zero");
         return 0;
     }
     diag = 1.0 / (GAMMA * h);
@@ -717,7 +726,7 @@ static int rodas4_step(Model *M, const double *y, const double *f0, double jac[]
     for (i = 0; i < n; i++)
         a[i][i] += diag;
     if (!inverse(n, a, inv)) {
-        fail(M, "singular iteration matrix");
+        fail(M, ZERO_DIVISION, "singular iteration matrix");
         return 0;
     }
     inv_h = 1.0 / h;
@@ -845,7 +854,7 @@ static int accepted_step(Model *M, const double *y, double u, double s, double *
         if (*steps > FP_MAX_STEPS) {
             snprintf(text, sizeof text, "the integrator needed more than %d steps in one "
                      "communication step", FP_MAX_STEPS);
-            fail(M, text);
+            fail(M, ARITHMETIC, text);
             return 1;
         }
         if (!rodas4_step(M, y, f0, jac, *h, u, s, y1, err, stages) || M->fail)
@@ -871,7 +880,7 @@ static int accepted_step(Model *M, const double *y, double u, double s, double *
         if (*h <= h_floor) {
             py_repr(*h, hr, sizeof hr);
             snprintf(text, sizeof text, "the integrator's step size fell below %s s", hr);
-            fail(M, text);
+            fail(M, ARITHMETIC, text);
             return 1;
         }
     }
@@ -958,7 +967,7 @@ static int stuck_lag(Model *M, double *y, double u, double remaining, double *t_
         bound = u > 0.0 ? limit : -limit;
         arg = (f0 - u) / (bound - u);
         if (arg <= 0.0) {
-            fail(M, "the integration failed: ValueError: math domain error");
+            fail(M, VALUE, "math domain error");
             return 0;
         }
         t = tau * log(arg);
@@ -1027,8 +1036,11 @@ static int integrate(Model *M, double u, double h_total)
         last = h >= remaining;
         if (last)
             h = remaining;
-        if (accepted_step(M, y, u, s, &h, &steps, 1e-15 * h_total, y1, stages, &q, &shrunk))
+        if (accepted_step(M, y, u, s, &h, &steps, 1e-15 * h_total, y1, stages, &q, &shrunk)) {
+            /* Plant._integrate catches ArithmeticError here and returns its text. */
+            M->bare = M->kind != NULL && strcmp(M->kind, VALUE) != 0;
             return 1;
+        }
         last = last && !shrunk;
         grow = grow_factor(q);
         theta = lugre ? -1.0 : event(M, y, y1, stages, u, s);
@@ -1043,7 +1055,7 @@ static int integrate(Model *M, double u, double h_total)
         if (events > FP_MAX_EVENTS) {
             snprintf(text, sizeof text, "more than %d stick-slip events in one communication "
                      "step", FP_MAX_EVENTS);
-            fail(M, text);
+            fail(M, NULL, text);
             return 1;
         }
         h_event = theta * h;
@@ -1125,7 +1137,7 @@ int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t
     Model M;
     FpState w;
     double x1, v1;
-    char a[40], text[160];
+    char a[40], text[300];
     if (!isfinite(u)) {
         py_repr(u, a, sizeof a);
         snprintf(text, sizeof text, "input u = %s N is not finite", a);
@@ -1157,9 +1169,15 @@ int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t
     else
         integrate(&M, u, h);
     if (!M.fail && !state_finite(&w))
-        fail(&M, "the result would not be finite");
+        fail(&M, NULL, "the result would not be finite");
     if (M.fail) {
-        say(msg, len, M.why);
+        /* Plant._step_checked: an exception that reached it is "the integration failed". */
+        if (M.kind != NULL && !M.bare) {
+            snprintf(text, sizeof text, "the integration failed: %s: %s", M.kind, M.why);
+            say(msg, len, text);
+        } else {
+            say(msg, len, M.why);
+        }
         return 1;
     }
     if (M.encoder) {

@@ -421,3 +421,18 @@ def test_each_rule_is_refused_with_the_model_layers_words(native: NativeLibrary,
     found = plant_problems({**PLANT_DEFAULTS, **values})
     assert found
     assert native.check(values) == found[0][1]
+
+
+@pytest.mark.parametrize("case", sorted(REALISM))
+def test_tiny_steps_are_refused_or_taken_as_the_model_layer_does(native: NativeLibrary,
+                                                                 case: str) -> None:
+    """Step sizes down to the smallest double: the integrator's step of h/8 divides by 0."""
+    steps = [(200.0, 0.01), (200.0, 5e-324), (200.0, 1e-310), (0.0, 1e-300), (150.0, 1e-12),
+             (200.0, 0.003), (-300.0, 5e-324), (0.0, 0.01), (100.0, 1e-320), (300.0, 2e-323),
+             (300.0, 0.01)]
+    run_both(native, REALISM[case], steps, 3)
+    py = Plant(REALISM[case])
+    reasons = {py.step(u, h) for u, h in steps}
+    assert reasons == ({None} if py.exact else
+                       {None, "float division by zero",
+                        "the integrator's step size fell below 0.0 s"})
