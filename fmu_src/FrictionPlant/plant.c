@@ -25,13 +25,60 @@
 
 /* ---- messages ---------------------------------------------------------------------------- */
 
+/* Whether the decimal n*10^e reads back as x. */
+static int reads_back(unsigned long long n, int e, double x)
+{
+    char buf[48];
+    double back;
+    snprintf(buf, sizeof buf, "%llue%d", n, e);
+    return sscanf(buf, "%lf", &back) == 1 && back == x;
+}
+
+/* The shortest decimal n*10^e (n with p <= 17 digits) that reads back as x > 0, and of
+ * those the nearest to x, as Python's repr finds it. */
+static void shortest(double x, unsigned long long *n_out, int *e_out)
+{
+    char buf[48];
+    const char *c;
+    unsigned long long n = 0;
+    int p, e = 0;
+    for (p = 1; p <= 17; p++) {
+        snprintf(buf, sizeof buf, "%.*e", p - 1, x);
+        n = 0;
+        for (c = buf; *c && *c != 'e'; c++)
+            if (*c >= '0' && *c <= '9')
+                n = 10 * n + (unsigned long long)(*c - '0');
+        sscanf(c + 1, "%d", &e);
+        e -= p - 1;
+        /* The nearest p digits; else the p digits on the other side of x may read back. */
+        if (reads_back(n, e, x))
+            break;
+        if (n > 1 && reads_back(n - 1, e, x)) {
+            n -= 1;
+            break;
+        }
+        if (reads_back(n + 1, e, x)) {
+            n += 1;
+            break;
+        }
+    }
+    while (n >= 10 && n % 10 == 0) {
+        n /= 10;
+        e += 1;
+    }
+    *n_out = n;
+    *e_out = e;
+}
+
 /* x as Python's repr writes it (shortest digits that read back exactly). */
 static void py_repr(double x, char *out, size_t len)
 {
-    char buf[40], digits[24];
-    int p, e = 0, nd = 0, neg, i, pos = 0;
+    char digits[24], buf[16];
     const char *c;
-    double back;
+    unsigned long long n;
+    int e, nd, i, pos = 0;
+    if (len == 0)
+        return;
     if (x != x) {
         snprintf(out, len, "nan");
         return;
@@ -40,24 +87,15 @@ static void py_repr(double x, char *out, size_t len)
         snprintf(out, len, x > 0 ? "inf" : "-inf");
         return;
     }
-    for (p = 1; p <= 17; p++) {
-        snprintf(buf, sizeof buf, "%.*e", p - 1, x);
-        if (sscanf(buf, "%lf", &back) == 1 && back == x)
-            break;
-    }
-    neg = buf[0] == '-';
-    for (c = buf + neg; *c && *c != 'e'; c++)
-        if (*c >= '0' && *c <= '9' && nd < 20)
-            digits[nd++] = *c;
-    if (*c == 'e')
-        sscanf(c + 1, "%d", &e);
-    while (nd > 1 && digits[nd - 1] == '0')
-        nd--;
-    digits[nd] = '\0';
-    if (len == 0)
+    if (x == 0.0) {
+        snprintf(out, len, signbit(x) ? "-0.0" : "0.0");
         return;
+    }
+    shortest(fabs(x), &n, &e);
+    nd = snprintf(digits, sizeof digits, "%llu", n);
+    e += nd - 1; /* the exponent of the first digit */
 #define PUT(ch) do { if ((size_t)pos + 1 < len) out[pos++] = (ch); } while (0)
-    if (neg)
+    if (x < 0)
         PUT('-');
     if (e < -4 || e >= 16) {
         PUT(digits[0]);

@@ -436,3 +436,16 @@ def test_tiny_steps_are_refused_or_taken_as_the_model_layer_does(native: NativeL
     assert reasons == ({None} if py.exact else
                        {None, "float division by zero",
                         "the integrator's step size fell below 0.0 s"})
+
+
+@settings(SETTINGS, max_examples=300)
+@given(f_s=st.one_of(
+    st.floats(0.0, 1e9, exclude_max=True),
+    st.sampled_from((2.0**-24, 5e-324, 2.2250738585072014e-308, 1e-5, 0.0001, 1e-4 * 3,
+                     123456789.0, 0.1, 1e-7, 9.999999999999999e-05, 1e8 + 0.5,
+                     999999999.9999999))))
+def test_values_in_messages_are_written_as_pythons_repr(native: NativeLibrary,
+                                                        f_s: float) -> None:
+    """The rule f_s >= f_c refused for f_s below f_c = 1e9 N: the message holds repr(f_s)."""
+    assert native.check({"f_s": f_s, "f_c": 1e9}) == (
+        f"f_s = {f_s!r} N: must be >= f_c = 1000000000.0 N")
