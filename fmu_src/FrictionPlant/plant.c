@@ -323,6 +323,8 @@ static double quantize(double x, double resolution)
         return x;
     q = x / resolution;
     n = floor(q);
+    if (n == 0.0)
+        n = 0.0; /* math.floor gives the integer 0 for -0.0: no sign */
     return (q - n >= 0.5 ? n + 1.0 : n) * resolution;
 }
 

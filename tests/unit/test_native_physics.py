@@ -163,6 +163,17 @@ def test_eq1_is_the_model_layer_bit_for_bit(native: NativeLibrary, params: dict[
     run_both(native, params, steps, copy_at)
 
 
+@pytest.mark.parametrize("params", [
+    {"x0": -0.0, "x_resolution": 1e-9},
+    {"x0": -0.0, "v0": -0.0, "x_resolution": 1e-6, "f_c": 0.0, "f_s": 0.0, "c": 0.0},
+    {"x0": -4e-10, "x_resolution": 1e-9, "noise_std": 1e-12},
+])
+def test_signed_zeros_are_read_as_the_model_layer_reads_them(
+        native: NativeLibrary, params: dict[str, float]) -> None:
+    """math.floor gives an integer: the encoder's count of -0.0 is 0, with no sign."""
+    run_both(native, params, [(0.0, 0.01), (-0.0, 0.01), (1e-300, 0.01)], 1)
+
+
 @pytest.mark.parametrize("u, h", [(math.nan, 0.01), (math.inf, 0.01), (-math.inf, 0.01),
                                   (10.0, 0.0), (10.0, -0.01), (10.0, math.inf),
                                   (10.0, math.nan)])
