@@ -128,6 +128,69 @@ static void py_repr(double x, char *out, size_t len)
     out[pos] = '\0';
 }
 
+/* x as Python's format(x, f".{precision}g") writes it (1 <= precision <= 17): the
+ * digits rounded to nearest (ties to even on the exact value, as printf's %e does), then
+ * fixed notation for a decimal exponent in [-4, precision), else d.ddde+XX with at least
+ * two exponent digits; trailing zeros and a trailing point dropped. Written here rather
+ * than left to printf's %g, whose exponent has three digits in some C libraries. */
+static void py_g(double x, int precision, char *out, size_t len)
+{
+    char buf[48], digits[24];
+    const char *c;
+    int nd = 0, e = 0, i, pos = 0;
+    if (len == 0)
+        return;
+    if (x != x) {
+        snprintf(out, len, "nan");
+        return;
+    }
+    if (isinf(x)) {
+        snprintf(out, len, x > 0 ? "inf" : "-inf");
+        return;
+    }
+    snprintf(buf, sizeof buf, "%.*e", precision - 1, fabs(x));
+    for (c = buf; *c && *c != 'e'; c++)
+        if (*c >= '0' && *c <= '9' && nd < (int)sizeof digits - 1)
+            digits[nd++] = *c;
+    if (*c == 'e')
+        sscanf(c + 1, "%d", &e);
+    while (nd > 1 && digits[nd - 1] == '0')
+        nd--;
+#define PUT(ch) do { if ((size_t)pos + 1 < len) out[pos++] = (ch); } while (0)
+    if (signbit(x))
+        PUT('-');
+    if (x == 0.0) {
+        PUT('0');
+    } else if (e < -4 || e >= precision) {
+        PUT(digits[0]);
+        if (nd > 1) {
+            PUT('.');
+            for (i = 1; i < nd; i++)
+                PUT(digits[i]);
+        }
+        snprintf(buf, sizeof buf, "e%c%02d", e < 0 ? '-' : '+', e < 0 ? -e : e);
+        for (c = buf; *c; c++)
+            PUT(*c);
+    } else if (e < 0) {
+        PUT('0');
+        PUT('.');
+        for (i = 0; i < -e - 1; i++)
+            PUT('0');
+        for (i = 0; i < nd; i++)
+            PUT(digits[i]);
+    } else {
+        for (i = 0; i <= e; i++)
+            PUT(i < nd ? digits[i] : '0');
+        if (nd > e + 1) {
+            PUT('.');
+            for (i = e + 1; i < nd; i++)
+                PUT(digits[i]);
+        }
+    }
+#undef PUT
+    out[pos] = '\0';
+}
+
 static void say(char *msg, size_t len, const char *text)
 {
     if (msg != NULL && len > 0)
@@ -1254,16 +1317,104 @@ void fp_outputs(const FpState *s, const FpParams *p, FpOutputs *y)
     y->stuck = s->v == 0.0;
 }
 
+/* The first deviation of papwc.model.plant.INTEGRATED that is on (> 0): its name, and
+ * its value in *value; NULL if none (plant._integrated). */
+static const char *integrated(const FpParams *p, double *value)
+{
+#define FP_FIRST_ON(name) \
+    if (p->name > 0.0) { \
+        *value = p->name; \
+        return #name; \
+    }
+    FP_INTEGRATED(FP_FIRST_ON)
+#undef FP_FIRST_ON
+    *value = 0.0;
+    return NULL;
+}
+
+/* The message of an off-or-at-least rule (plant._off_or_at_least): name = value is
+ * neither 0 nor >= low_text; which (if not NULL) is the integrated deviation that makes
+ * the rule apply. Returns 1 (refused). */
+static int off_refused(const char *name, double value, const char *low_text,
+                       const char *unit, const char *which, double which_value, char *msg,
+                       size_t len)
+{
+    char a[40], b[40], when[120], text[512];
+    py_repr(value, a, sizeof a);
+    when[0] = '\0';
+    if (which != NULL) {
+        py_repr(which_value, b, sizeof b);
+        snprintf(when, sizeof when, " when the plant is integrated (%s = %s > 0)", which, b);
+    }
+    snprintf(text, sizeof text, "%s = %s%s: must be 0 (none) or >= %s%s%s (a smaller one has "
+             "no effect at the plant's steps, and makes them overflow or take unbounded time)",
+             name, a, unit, low_text, unit, when);
+    say(msg, len, text);
+    return 1;
+}
+
 /* The rules between parameters (papwc.model.plant.PLANT_CONSTRAINTS), in their order;
- * the message is the model layer's, word for word. */
+ * the message is the model layer's, word for word (values as repr writes them, the
+ * model layer's {x:.6g} by py_g). The thresholds, the deviations that make the plant
+ * integrated and the maxima come from plant_vars.h, generated from the model layer. */
 int fp_check(const FpParams *p, char *msg, size_t len)
 {
-    char a[40], b[40], c[40], d[40], text[400];
-    double lowest, f;
+    char a[40], b[40], c[40], d[40], g[40], text[512];
+    const char *which;
+    double lowest, f, which_value;
     if (p->f_s < p->f_c) {
         py_repr(p->f_s, a, sizeof a);
         py_repr(p->f_c, b, sizeof b);
         snprintf(text, sizeof text, "f_s = %s N: must be >= f_c = %s N", a, b);
+        say(msg, len, text);
+        return 1;
+    }
+    /* _off_or_at_least(name, low) for OFF_OR_AT_LEAST */
+#define FP_OFF(name, low, low_text, unit) \
+    if (p->name != 0.0 && fabs(p->name) < (low)) \
+        return off_refused(#name, p->name, low_text, unit, NULL, 0.0, msg, len);
+    FP_OFF_OR_AT_LEAST(FP_OFF)
+#undef FP_OFF
+    /* _off_or_at_least(name, low, integrated=True) for INTEGRATED_OFF_OR_AT_LEAST */
+    which = integrated(p, &which_value);
+#define FP_OFF_INTEGRATED(name, low, low_text, unit) \
+    if (p->name != 0.0 && fabs(p->name) < (low) && which != NULL) \
+        return off_refused(#name, p->name, low_text, unit, which, which_value, msg, len);
+    FP_INTEGRATED_OFF_OR_AT_LEAST(FP_OFF_INTEGRATED)
+#undef FP_OFF_INTEGRATED
+    /* _acceleration_bounded */
+    if (which != NULL && p->f_s / p->m > FP_ACCELERATION_MAX) {
+        py_repr(p->m, a, sizeof a);
+        py_g(p->f_s / p->m, 6, g, sizeof g);
+        py_repr(p->f_s, b, sizeof b);
+        py_repr(which_value, c, sizeof c);
+        snprintf(text, sizeof text, "m = %s kg: the breakaway force gives the mass f_s/m = %s "
+                 "m/s^2 (f_s = %s N); must be <= %s m/s^2 when the plant is integrated "
+                 "(%s = %s > 0)", a, g, b, FP_ACCELERATION_MAX_TEXT, which, c);
+        say(msg, len, text);
+        return 1;
+    }
+    /* _damping_bounded */
+    if (which != NULL && p->c / p->m > FP_DAMPING_RATE_MAX) {
+        py_repr(p->c, a, sizeof a);
+        py_g(p->c / p->m, 6, g, sizeof g);
+        py_repr(p->m, b, sizeof b);
+        py_repr(which_value, c, sizeof c);
+        snprintf(text, sizeof text, "c = %s N.s/m: the damping rate c/m = %s 1/s (m = %s kg) "
+                 "must be <= %s 1/s when the plant is integrated (%s = %s > 0)", a, g, b,
+                 FP_DAMPING_RATE_MAX_TEXT, which, c);
+        say(msg, len, text);
+        return 1;
+    }
+    if (p->m_d > 0.0 && p->c_t * (1.0 / p->m + 1.0 / p->m_d) > FP_DAMPING_RATE_MAX) {
+        f = p->c_t * (1.0 / p->m + 1.0 / p->m_d);
+        py_repr(p->c_t, a, sizeof a);
+        py_g(f, 6, g, sizeof g);
+        py_repr(p->m, b, sizeof b);
+        py_repr(p->m_d, c, sizeof c);
+        snprintf(text, sizeof text, "c_t = %s N.s/m: the coupling's damping rate c_t*(1/m + "
+                 "1/m_d) = %s 1/s (m = %s kg, m_d = %s kg) must be <= %s 1/s", a, g, b, c,
+                 FP_DAMPING_RATE_MAX_TEXT);
         say(msg, len, text);
         return 1;
     }
@@ -1307,9 +1458,10 @@ int fp_check(const FpParams *p, char *msg, size_t len)
         if (f > FP_MODE_FREQUENCY_MAX) {
             py_repr(p->sigma_0, a, sizeof a);
             py_repr(p->m, b, sizeof b);
+            py_g(f, 6, g, sizeof g);
             snprintf(text, sizeof text, "sigma_0 = %s N/m: the pre-sliding mode "
-                     "sqrt(sigma_0/m)/(2*pi) = %.6g Hz (m = %s kg) must be <= %g Hz",
-                     a, f, b, FP_MODE_FREQUENCY_MAX);
+                     "sqrt(sigma_0/m)/(2*pi) = %s Hz (m = %s kg) must be <= %s Hz",
+                     a, g, b, FP_MODE_FREQUENCY_MAX_TEXT);
             say(msg, len, text);
             return 1;
         }
@@ -1320,9 +1472,10 @@ int fp_check(const FpParams *p, char *msg, size_t len)
             py_repr(p->k_t, a, sizeof a);
             py_repr(p->m, c, sizeof c);
             py_repr(p->m_d, d, sizeof d);
+            py_g(f, 6, g, sizeof g);
             snprintf(text, sizeof text, "k_t = %s N/m: the flexible mode sqrt(k_t*(1/m + "
-                     "1/m_d))/(2*pi) = %.6g Hz (m = %s kg, m_d = %s kg) must be <= %g Hz; a "
-                     "stiffer drive is rigid: m_d = 0", a, f, c, d, FP_MODE_FREQUENCY_MAX);
+                     "1/m_d))/(2*pi) = %s Hz (m = %s kg, m_d = %s kg) must be <= %s Hz; a "
+                     "stiffer drive is rigid: m_d = 0", a, g, c, d, FP_MODE_FREQUENCY_MAX_TEXT);
             say(msg, len, text);
             return 1;
         }

@@ -30,7 +30,19 @@ from hypothesis import strategies as st
 
 from papwc.fmubuild.native_tables import plant_header, value_references
 from papwc.model.dynamics import STATE_FIELDS, Plant
-from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES, plant_problems
+from papwc.model.plant import (
+    ACCELERATION_MAX,
+    DAMPING_RATE_MAX,
+    INTEGRATED,
+    INTEGRATED_OFF_OR_AT_LEAST,
+    MODE_FREQUENCY_MAX,
+    OFF_OR_AT_LEAST,
+    PLANT_CONSTRAINTS,
+    PLANT_DEFAULTS,
+    PLANT_PARAMETERS,
+    PLANT_VARIABLES,
+    plant_problems,
+)
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from native_lib import NativeLibrary, NativePlant, build_plant_library, compiler  # noqa: E402
@@ -287,6 +299,11 @@ def deviation_params(draw: st.DrawFn, case: str) -> dict[str, float]:
         p.update(lag(draw))
     if case in ("flexible", "all_stick_slip", "all_lugre"):
         p.update(flexible(draw, p["m"]))
+    # A value drawn between 0 and the smallest one the model layer allows (its "0 or >= low"
+    # rules) is taken at that smallest value: the deviation stays on, at its boundary.
+    for name, low in {**OFF_OR_AT_LEAST, **INTEGRATED_OFF_OR_AT_LEAST}.items():
+        if 0.0 < p.get(name, 0.0) < low:
+            p[name] = low
     return p
 
 
@@ -369,8 +386,14 @@ def test_realism_run_is_the_model_layer_bit_for_bit(native: NativeLibrary, case:
 # --- the rules between parameters -----------------------------------------------------------------
 
 
+#: The smallest value other than 0 of each parameter that has one (the "0 or >= low" rules).
+LOWEST = {**OFF_OR_AT_LEAST, **INTEGRATED_OFF_OR_AT_LEAST}
+BY_NAME = {var.name: var for var in PLANT_PARAMETERS}
+
+
 def edges(var: Any) -> st.SearchStrategy[float]:
-    """A parameter's value at or next to the ends of its range, its default or within."""
+    """A parameter's value at or next to the ends of its range, its default or within, at or
+    next to its smallest value other than 0 (:data:`LOWEST`), or the smallest double."""
     if var.type == "Integer":
         return st.sampled_from((var.min, var.max, var.default)).map(int)
     lo, hi = var.min, var.max
@@ -380,6 +403,10 @@ def edges(var: Any) -> st.SearchStrategy[float]:
         values.append(hi)
     if var.min_open:
         values.remove(lo)
+    if var.name in LOWEST:
+        low = LOWEST[var.name]
+        values += [low, math.nextafter(low, math.inf), math.nextafter(low, -math.inf),
+                   0.5 * low, 5e-324]
     return st.one_of(st.sampled_from(values), st.floats(lo, hi, exclude_max=var.max_open))
 
 
@@ -389,27 +416,56 @@ def near(value: float, draw: st.DrawFn) -> float:
                                  math.nextafter(value, -math.inf))))
 
 
+#: What :func:`parameter_sets` puts on or next to a boundary: a rule of PLANT_CONSTRAINTS.
+RULES = ("none", "f_s", "off", "integrated_off", "acceleration", "damping", "coupling",
+         "spread", "presliding", "flexible")
+
+
 @st.composite
 def parameter_sets(draw: st.DrawFn) -> dict[str, float]:
     """Parameters each valid on its own, often on the boundary of a rule between them."""
     # Each parameter at its default half of the time, so that every rule is reached.
     p = {var.name: draw(st.one_of(st.just(var.default), edges(var))) for var in PLANT_PARAMETERS}
-    rule = draw(st.sampled_from(("none", "f_s", "spread", "presliding", "flexible")))
+    rule = draw(st.sampled_from(RULES))
     if rule != "f_s" and draw(st.booleans()):
         p["f_s"] = max(p["f_s"], p["f_c"])
+    if rule in ("integrated_off", "acceleration", "damping") and draw(st.booleans()):
+        # An integrated deviation on (at or above its smallest value), so that these apply.
+        name = draw(st.sampled_from(INTEGRATED))
+        p[name] = max(p[name], LOWEST.get(name, 5e-324))
     if rule == "f_s":
         p["f_s"] = near(p["f_c"], draw)
+    elif rule in ("off", "integrated_off"):
+        table = OFF_OR_AT_LEAST if rule == "off" else INTEGRATED_OFF_OR_AT_LEAST
+        name = draw(st.sampled_from(sorted(table)))
+        p[name] = draw(st.sampled_from((5e-324, 0.5 * table[name], 0.0))) if draw(
+            st.booleans()) else near(table[name], draw)
+        if name == "f_s" and draw(st.booleans()):
+            p["f_c"] = min(p["f_c"], p["f_s"])
+    elif rule == "acceleration":
+        if draw(st.booleans()):
+            p["f_s"] = near(p["m"] * ACCELERATION_MAX, draw)
+        else:
+            p["m"] = near(p["f_s"] / ACCELERATION_MAX, draw)
+    elif rule == "damping":
+        if draw(st.booleans()):
+            p["c"] = near(p["m"] * DAMPING_RATE_MAX, draw)
+        else:
+            p["m"] = near(p["c"] / DAMPING_RATE_MAX, draw)
+    elif rule == "coupling":
+        p["m_d"] = max(p["m_d"], LOWEST["m_d"])
+        p["c_t"] = near(DAMPING_RATE_MAX / (1.0 / p["m"] + 1.0 / p["m_d"]), draw)
     elif rule == "spread" and p["f_s_spread"] > 0.0:
         p["f_c"] = near(p["f_s"] * (1.0 - p["f_s_spread"]), draw)
     elif rule == "presliding":
-        p["sigma_0"] = near(p["m"] * (2.0 * math.pi * 1e4) ** 2, draw)
+        p["sigma_0"] = near(p["m"] * (2.0 * math.pi * MODE_FREQUENCY_MAX) ** 2, draw)
     elif rule == "flexible" and p["m_d"] > 0.0:
-        p["k_t"] = near((2.0 * math.pi * 1e4) ** 2 / (1.0 / p["m"] + 1.0 / p["m_d"]), draw)
-    by_name = {var.name: var for var in PLANT_PARAMETERS}
-    return {name: value for name, value in p.items() if by_name[name].check(value) is None}
+        p["k_t"] = near((2.0 * math.pi * MODE_FREQUENCY_MAX) ** 2
+                        / (1.0 / p["m"] + 1.0 / p["m_d"]), draw)
+    return {name: value for name, value in p.items() if BY_NAME[name].check(value) is None}
 
 
-@settings(SETTINGS, max_examples=250)
+@settings(SETTINGS, max_examples=600)
 @given(values=parameter_sets())
 def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary,
                                                       values: dict[str, float]) -> None:
@@ -418,20 +474,97 @@ def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary,
     assert native.check(full) == (found[0][1] if found else None)
 
 
-@pytest.mark.parametrize("values", [
-    {"f_c": 140.0},
-    {"f_s_spread": 0.5},
-    {"sigma_0": 1e6, "f_c": 0.0, "f_s": 0.0},
-    {"sigma_0": 1e6, "f_s_spread": 0.1, "f_c": 50.0},
-    {"m_d": 10.0},
-    {"sigma_0": 1e12, "m": 1.0},
-    {"m_d": 1e-3, "k_t": 1e12},
-])
-def test_each_rule_is_refused_with_the_model_layers_words(native: NativeLibrary,
-                                                          values: dict[str, float]) -> None:
-    found = plant_problems({**PLANT_DEFAULTS, **values})
-    assert found
-    assert native.check(values) == found[0][1]
+#: An integrated deviation on, per deviation of INTEGRATED (with what it needs).
+ON = {"v_s": {"v_s": 1e-3}, "sigma_0": {"sigma_0": 1e6, "sigma_1": 1e3}, "ripple": {"ripple": 0.1},
+      "tau_u": {"tau_u": 2e-3}, "m_d": {"m_d": 50.0, "k_t": 1e5}}
+BELOW = math.nextafter  # readable alias below: BELOW(x, 0.0) is the double under x > 0
+
+
+def _cases() -> list[tuple[dict[str, float], str | None]]:
+    """Parameter sets (over the defaults) at and around each rule's boundary, each with the
+    parameter the model layer names first (None: accepted)."""
+    out: list[tuple[dict[str, float], str | None]] = [
+        ({}, None),
+        ({"f_c": 140.0}, "f_s"),
+        ({"f_s": BELOW(100.0, 0.0)}, "f_s"),
+        ({"f_s": 100.0}, None),
+    ]
+    for name, low in OFF_OR_AT_LEAST.items():
+        extra = {"k_t": 1.0} if name == "m_d" else {}
+        out += [({name: BELOW(low, 0.0), **extra}, name), ({name: 5e-324, **extra}, name),
+                ({name: low, **extra}, None)]
+    for name, low in INTEGRATED_OFF_OR_AT_LEAST.items():
+        extra = {"f_c": 0.0} if name == "f_s" else {}
+        out += [({name: BELOW(low, 0.0), **extra}, None),  # Eq. (1) alone: no bound
+                ({name: BELOW(low, 0.0), **extra, **ON["v_s"], **ON["ripple"]}, name),
+                ({name: low, **extra, **ON["tau_u"]}, None)]
+        out += [({name: 1e-300, **extra, **on}, name) for on in ON.values()]
+    for on in ON.values():
+        m = 130.0 / ACCELERATION_MAX
+        out += [({"m": m, "c": 0.0, **on}, None), ({"m": BELOW(m, 0.0), "c": 0.0, **on}, "m"),
+                ({"m": 1e-6, "f_s": 1e9, "f_c": 1.0, **on}, "m"),
+                ({"c": 150.0 * DAMPING_RATE_MAX, **on}, None),
+                ({"c": BELOW(150.0 * DAMPING_RATE_MAX, math.inf), **on}, "c"),
+                ({"c": 1e9, "m": 1e-6, "f_s": 1e-3, "f_c": 1e-3, **on}, "c")]
+    out += [({"m": 1e-6, "f_s": 1e9}, None), ({"c": 1e9, "m": 1e-6}, None)]  # Eq. (1) alone
+    rate = DAMPING_RATE_MAX / (1.0 / 150.0 + 1.0 / 50.0)
+    out += [({**ON["m_d"], "c_t": rate}, None),
+            ({**ON["m_d"], "c_t": BELOW(rate, math.inf)}, "c_t"),
+            ({"m_d": 1e-3, "k_t": 1e-12, "c_t": 999e6}, "c_t"),
+            ({"f_s_spread": 0.5}, "f_s_spread"),
+            ({"sigma_0": 1e6, "f_c": 0.0, "f_s": 0.0}, "sigma_0"),
+            ({"sigma_0": 1e6, "f_s_spread": 0.1, "f_c": 50.0}, "f_s_spread"),
+            ({"m_d": 10.0}, "k_t"),
+            ({"sigma_0": 1e12, "m": 1.0}, "sigma_0"),
+            ({"m_d": 1e-3, "k_t": 1e12}, "k_t")]
+    return out
+
+
+CASES = _cases()
+
+
+@pytest.mark.parametrize(("values", "name"), CASES)
+def test_each_rule_is_refused_with_the_model_layers_words(
+        native: NativeLibrary, values: dict[str, float], name: str | None) -> None:
+    full = {**PLANT_DEFAULTS, **values}
+    assert all(BY_NAME[n].check(v) is None for n, v in values.items()), values
+    found = plant_problems(full)
+    assert (found[0][0] if found else None) == name, found
+    assert native.check(full) == (found[0][1] if found else None)
+
+
+def test_the_cases_reach_every_rule_of_the_model_layer() -> None:
+    """Each rule of PLANT_CONSTRAINTS (each off-or-at-least entry its own) is the first to
+    refuse in some case above: a rule added to the model layer fails here until the C plant
+    and a case have it."""
+    first = set()
+    for values, _ in CASES:
+        full = {**PLANT_DEFAULTS, **values}
+        first |= {next((i for i, rule in enumerate(PLANT_CONSTRAINTS)
+                        if rule.check(full) is not None), None)}
+    assert first - {None} == set(range(len(PLANT_CONSTRAINTS)))
+
+
+def test_header_rule_tables_are_the_model_layers() -> None:
+    text = plant_header()
+
+    def table(macro: str) -> list[tuple[str, ...]]:
+        body = re.search(rf"#define {macro}\(X\) \\\n((?:    X\(.*\)(?: \\)?\n)+)", text)
+        assert body is not None, macro
+        return [tuple(part.strip() for part in row.split(", "))
+                for row in re.findall(r"X\((.*?)\)(?: \\)?\n", body.group(1))]
+
+    for macro, model in (("FP_OFF_OR_AT_LEAST", OFF_OR_AT_LEAST),
+                         ("FP_INTEGRATED_OFF_OR_AT_LEAST", INTEGRATED_OFF_OR_AT_LEAST)):
+        rows = table(macro)
+        assert [(n, float(low), g.strip('"'), unit.strip('"')) for n, low, g, unit in rows] == [
+            (n, low, f"{low:g}", BY_NAME[n].unit_suffix) for n, low in model.items()]
+    assert [row[0] for row in table("FP_INTEGRATED")] == list(INTEGRATED)
+    for name, value in (("MODE_FREQUENCY_MAX", MODE_FREQUENCY_MAX),
+                        ("DAMPING_RATE_MAX", DAMPING_RATE_MAX),
+                        ("ACCELERATION_MAX", ACCELERATION_MAX)):
+        assert f"#define FP_{name} {float(value)!r}\n" in text
+        assert f'#define FP_{name}_TEXT "{value:g}"\n' in text
 
 
 @pytest.mark.parametrize("case", sorted(REALISM))
@@ -460,3 +593,17 @@ def test_values_in_messages_are_written_as_pythons_repr(native: NativeLibrary,
     """The rule f_s >= f_c refused for f_s below f_c = 1e9 N: the message holds repr(f_s)."""
     assert native.check({"f_s": f_s, "f_c": 1e9}) == (
         f"f_s = {f_s!r} N: must be >= f_c = 1000000000.0 N")
+
+
+@settings(SETTINGS, max_examples=300)
+@given(c=st.one_of(
+    st.floats(1e4, 1e9, exclude_min=True),
+    st.sampled_from((10000.25, 10000.75, 123456.5, 1234565.0, 1234575.0, 999999.5, 9999995.0,
+                     99999.95, 100000.0, 1e6, 1e9, math.nextafter(1e4, math.inf)))))
+def test_values_in_messages_are_written_as_pythons_format_6g(native: NativeLibrary,
+                                                             c: float) -> None:
+    """The damping rule refused for m = 1 kg: the message holds format(c/m, ".6g") = c's."""
+    values = {**PLANT_DEFAULTS, "m": 1.0, "c": c, "tau_u": 1e-3}
+    found = plant_problems(values)
+    assert f"c/m = {c:.6g} 1/s" in found[0][1]
+    assert native.check(values) == found[0][1]

@@ -13,9 +13,18 @@ integrator its tolerances and limits, so each is still declared once, in
 - ``FP_UNITS(X)``: ``X(name, "unit")`` for every variable (for messages);
 - ``FpParams`` and ``FpOutputs``: one field per parameter and per output, same name;
 - the integrator's tolerances (:data:`papwc.model.dynamics.TOLERANCES`), its
-  limits (``MAX_STEPS``, ``MAX_EVENTS``), the highest mode frequency of the
-  rules between parameters (:data:`papwc.model.plant.MODE_FREQUENCY_MAX`) and
-  the random streams of :mod:`papwc.model.effects`.
+  limits (``MAX_STEPS``, ``MAX_EVENTS``) and the random streams of
+  :mod:`papwc.model.effects`;
+- the data of the rules between parameters (:data:`papwc.model.plant.PLANT_CONSTRAINTS`):
+  ``FP_OFF_OR_AT_LEAST(X)`` and ``FP_INTEGRATED_OFF_OR_AT_LEAST(X)``, ``X(name, low,
+  "low", " unit")`` per entry of :data:`~papwc.model.plant.OFF_OR_AT_LEAST` and
+  :data:`~papwc.model.plant.INTEGRATED_OFF_OR_AT_LEAST` in their order (``"low"`` as the
+  messages write it, ``f"{low:g}"``; the unit as ``Variable.unit_suffix``);
+  ``FP_INTEGRATED(X)``, ``X(name)`` per deviation of
+  :data:`~papwc.model.plant.INTEGRATED` in its order; the highest mode frequency, damping
+  rate and acceleration (``MODE_FREQUENCY_MAX``, ``DAMPING_RATE_MAX``,
+  ``ACCELERATION_MAX``), each also as ``..._TEXT``, written as the messages write it
+  (``f"{x:g}"``), so no message depends on the C library's ``%g``.
 
 Value references are the index of a variable in
 :data:`papwc.model.plant.PLANT_VARIABLES`, as in the model description.
@@ -31,7 +40,12 @@ from papwc.model.dynamics import MAX_EVENTS, MAX_STEPS, TOLERANCES
 from papwc.model.effects.encoder import STREAM as NOISE_STREAM
 from papwc.model.effects.stiction import STREAM as STICTION_STREAM
 from papwc.model.plant import (
+    ACCELERATION_MAX,
+    DAMPING_RATE_MAX,
+    INTEGRATED,
+    INTEGRATED_OFF_OR_AT_LEAST,
     MODE_FREQUENCY_MAX,
+    OFF_OR_AT_LEAST,
     PLANT_INPUTS,
     PLANT_OUTPUTS,
     PLANT_PARAMETERS,
@@ -39,7 +53,8 @@ from papwc.model.plant import (
 )
 from papwc.model.variables import Variable
 
-__all__ = ["HEADER_NAME", "plant_header", "value_references", "write_plant_header"]
+__all__ = ["HEADER_NAME", "plant_header", "rule_tables", "value_references",
+           "write_plant_header"]
 
 #: File name of the generated header.
 HEADER_NAME = "plant_vars.h"
@@ -80,6 +95,52 @@ def _entry(var: Variable, vr: int) -> str:
 def _x_macro(name: str, lines: list[str]) -> str:
     body = " \\\n    ".join(lines)
     return f"#define {name}(X) \\\n    {body}\n"
+
+
+def _real_parameter(name: str, table: str) -> Variable:
+    """The Real parameter ``name`` that the rule table ``table`` names (the C reads a double)."""
+    var = next((v for v in PLANT_PARAMETERS if v.name == name), None)
+    if var is None or var.type != "Real":
+        raise ValueError(f"{table} names {name!r}: the C rules read Real plant parameters only")
+    return var
+
+
+def _c_string(text: str) -> str:
+    """``text`` as a C string literal (the texts here are plain ASCII)."""
+    if not text.isascii() or any(ch in text for ch in '"\\\n'):
+        raise ValueError(f"{text!r} cannot be written as a plain C string literal")
+    return f'"{text}"'
+
+
+def _limit(name: str, value: float) -> list[str]:
+    """``#define FP_<name>`` (the double) and ``FP_<name>_TEXT`` (as messages write it)."""
+    return [f"#define FP_{name} {float(value)!r}",
+            f"#define FP_{name}_TEXT {_c_string(format(float(value), 'g'))}"]
+
+
+def rule_tables() -> str:
+    """The part of ``plant_vars.h`` that gives the data of the rules between parameters."""
+    def off(table: dict[str, float], label: str) -> list[str]:
+        return [f"X({name}, {float(low)!r}, {_c_string(format(float(low), 'g'))}, "
+                f"{_c_string(_real_parameter(name, label).unit_suffix)})"
+                for name, low in table.items()]
+
+    for name in INTEGRATED:
+        _real_parameter(name, "INTEGRATED")
+    return "\n".join([
+        "/* The rules between parameters (papwc.model.plant.PLANT_CONSTRAINTS).",
+        " * X(name, low, \"low\", \" unit\"): 0 (none) or >= low; OFF_OR_AT_LEAST always,",
+        " * INTEGRATED_OFF_OR_AT_LEAST when an INTEGRATED deviation is > 0 (the first",
+        " * names it). */",
+        _x_macro("FP_OFF_OR_AT_LEAST", off(OFF_OR_AT_LEAST, "OFF_OR_AT_LEAST")),
+        _x_macro("FP_INTEGRATED_OFF_OR_AT_LEAST",
+                 off(INTEGRATED_OFF_OR_AT_LEAST, "INTEGRATED_OFF_OR_AT_LEAST")),
+        "/* X(name) */",
+        _x_macro("FP_INTEGRATED", [f"X({name})" for name in INTEGRATED]),
+        *_limit("MODE_FREQUENCY_MAX", MODE_FREQUENCY_MAX),
+        *_limit("DAMPING_RATE_MAX", DAMPING_RATE_MAX),
+        *_limit("ACCELERATION_MAX", ACCELERATION_MAX),
+    ])
 
 
 def plant_header() -> str:
@@ -132,9 +193,10 @@ def plant_header() -> str:
     out += [
         f"#define FP_MAX_STEPS {int(MAX_STEPS)}",
         f"#define FP_MAX_EVENTS {int(MAX_EVENTS)}",
-        f"#define FP_MODE_FREQUENCY_MAX {float(MODE_FREQUENCY_MAX)!r}",
         f"#define FP_STREAM_STICTION {int(STICTION_STREAM)}",
         f"#define FP_STREAM_NOISE {int(NOISE_STREAM)}",
+        "",
+        rule_tables(),
         "",
         "#endif",
         "",
