@@ -418,7 +418,7 @@ def near(value: float, draw: st.DrawFn) -> float:
 
 #: What :func:`parameter_sets` puts on or next to a boundary: a rule of PLANT_CONSTRAINTS.
 RULES = ("none", "f_s", "off", "integrated_off", "acceleration", "damping", "coupling",
-         "spread", "presliding", "flexible")
+         "spread", "lugre", "random_lugre", "presliding", "flexible")
 
 
 @st.composite
@@ -427,12 +427,39 @@ def parameter_sets(draw: st.DrawFn) -> dict[str, float]:
     # Each parameter at its default half of the time, so that every rule is reached.
     p = {var.name: draw(st.one_of(st.just(var.default), edges(var))) for var in PLANT_PARAMETERS}
     rule = draw(st.sampled_from(RULES))
-    if rule != "f_s" and draw(st.booleans()):
-        p["f_s"] = max(p["f_s"], p["f_c"])
-    if rule in ("integrated_off", "acceleration", "damping") and draw(st.booleans()):
+    if rule in ("integrated_off", "acceleration", "damping") and draw(st.integers(0, 3)):
         # An integrated deviation on (at or above its smallest value), so that these apply.
         name = draw(st.sampled_from(INTEGRATED))
         p[name] = max(p[name], LOWEST.get(name, 5e-324))
+    if draw(st.integers(0, 3)):
+        # The rules before this one in PLANT_CONSTRAINTS made to hold, so that it is reached
+        # (else several are violated at once and the first is the one named).
+        if rule in ("presliding", "flexible", "none"):
+            if p["sigma_0"] > 0.0:
+                p["f_c"], p["f_s_spread"] = max(p["f_c"], 1.0), 0.0
+            if p["f_s"] * (1.0 - p["f_s_spread"]) < p["f_c"]:
+                p["f_s_spread"] = 0.0
+            if p["m_d"] > 0.0 and not p["k_t"] > 0.0:
+                p["k_t"] = 1.0
+        if rule == "presliding":  # a mass light enough for a pre-sliding mode at the bound
+            p["f_c"], p["f_s"], p["c"] = min(p["f_c"], 1e3), min(p["f_s"], 1e3), min(p["c"], 1e3)
+            p["m"] = min(p["m"], draw(st.floats(1e-6, 250.0)))
+        if rule != "f_s":
+            p["f_s"] = max(p["f_s"], p["f_c"])
+        for name, low in LOWEST.items():
+            if 0.0 < p[name] < low:
+                p[name] = draw(st.sampled_from((0.0, low)))
+        if rule not in ("acceleration", "damping"):
+            p["m"] = max(p["m"], p["f_s"] / ACCELERATION_MAX, p["c"] / DAMPING_RATE_MAX)
+        if rule != "coupling" and p["m_d"] > 0.0:
+            p["c_t"] = min(p["c_t"], 0.5 * DAMPING_RATE_MAX / (1.0 / p["m"] + 1.0 / p["m_d"]))
+    if rule in ("lugre", "random_lugre"):
+        p["sigma_0"] = max(p["sigma_0"], LOWEST["sigma_0"])
+    if rule == "lugre":
+        p["f_c"] = draw(st.sampled_from((0.0, 5e-324, LOWEST["f_c"])))
+    elif rule == "random_lugre":
+        p["f_s_spread"] = max(p["f_s_spread"], LOWEST["f_s_spread"])
+        p["f_c"] = min(p["f_c"], p["f_s"] * (1.0 - p["f_s_spread"]))
     if rule == "f_s":
         p["f_s"] = near(p["f_c"], draw)
     elif rule in ("off", "integrated_off"):
@@ -440,8 +467,8 @@ def parameter_sets(draw: st.DrawFn) -> dict[str, float]:
         name = draw(st.sampled_from(sorted(table)))
         p[name] = draw(st.sampled_from((5e-324, 0.5 * table[name], 0.0))) if draw(
             st.booleans()) else near(table[name], draw)
-        if name == "f_s" and draw(st.booleans()):
-            p["f_c"] = min(p["f_c"], p["f_s"])
+        if name == "f_s":
+            p["f_c"] = 0.0  # (f_c > f_s or a tiny f_c would be refused first)
     elif rule == "acceleration":
         if draw(st.booleans()):
             p["f_s"] = near(p["m"] * ACCELERATION_MAX, draw)
@@ -465,13 +492,24 @@ def parameter_sets(draw: st.DrawFn) -> dict[str, float]:
     return {name: value for name, value in p.items() if BY_NAME[name].check(value) is None}
 
 
-@settings(SETTINGS, max_examples=600)
-@given(values=parameter_sets())
-def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary,
-                                                      values: dict[str, float]) -> None:
-    full = {**PLANT_DEFAULTS, **values}
-    found = plant_problems(full)
-    assert native.check(full) == (found[0][1] if found else None)
+def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary) -> None:
+    """fp_check and plant_problems agree on every drawn set (the first refusal, word for
+    word); among the sets drawn, each rule of PLANT_CONSTRAINTS is the first to refuse."""
+    first: set[int | None] = set()
+
+    @settings(SETTINGS, max_examples=600)
+    @given(values=parameter_sets())
+    def check(values: dict[str, float]) -> None:
+        full = {**PLANT_DEFAULTS, **values}
+        found = plant_problems(full)
+        assert native.check(full) == (found[0][1] if found else None)
+        first.add(next((i for i, rule in enumerate(PLANT_CONSTRAINTS)
+                        if rule.check(full) is not None), None))
+
+    check()
+    assert set(range(len(PLANT_CONSTRAINTS))) <= first, (
+        "rules never reached by parameter_sets: "
+        f"{sorted(set(range(len(PLANT_CONSTRAINTS))) - first)}")
 
 
 #: An integrated deviation on, per deviation of INTEGRATED (with what it needs).
