@@ -645,3 +645,30 @@ def test_values_in_messages_are_written_as_pythons_format_6g(native: NativeLibra
     found = plant_problems(values)
     assert f"c/m = {c:.6g} 1/s" in found[0][1]
     assert native.check(values) == found[0][1]
+
+
+#: Forces of :func:`test_accepted_edge_plants_step_as_the_model_layer`, in units of
+#: max(f_s, m * 1 m/s^2): push, hold, release, reverse, nudge.
+EDGE_FORCES = (0.0, 1.5, 1.5, 0.0, -3.0, 0.0, 0.5, 0.0)
+
+
+@pytest.mark.slow
+def test_accepted_edge_plants_step_as_the_model_layer(native: NativeLibrary) -> None:
+    """The plants the rules accept at the edges of the ranges and beside the rules' boundaries
+    (:func:`parameter_sets`: smallest values other than 0, largest accelerations and damping
+    rates, stiffest modes) step bit for bit as the model layer, refusals included."""
+    accepted = 0
+
+    @settings(SETTINGS, max_examples=200)
+    @given(values=parameter_sets(), h=st.sampled_from((0.01, 1e-3)), copy_at=st.integers(0, 8))
+    def check(values: dict[str, float], h: float, copy_at: int) -> None:
+        nonlocal accepted
+        full = {**PLANT_DEFAULTS, **values}
+        if plant_problems(full):
+            return
+        accepted += 1
+        scale = max(full["f_s"], full["m"] * 1.0)
+        run_both(native, full, [(factor * scale, h) for factor in EDGE_FORCES], copy_at)
+
+    check()
+    assert accepted >= 30, accepted  # (61 of the 200 sets drawn)
