@@ -49,8 +49,11 @@ typedef struct {
 void fp_defaults(FpParams *p);
 
 /* The rules between parameters (papwc.model.plant.PLANT_CONSTRAINTS): 0 if all hold,
- * else nonzero and msg names the first rule violated with the values. The range of
- * each parameter on its own is not checked here (FP_PARAMETERS gives it). */
+ * else nonzero and msg names the first rule violated with the values, in the model
+ * layer's words (plant_problems' first message; the longest is under 300 bytes, so a
+ * msg of 512 bytes holds each whole). The range of each parameter on its own is not
+ * checked here (FP_PARAMETERS gives it); the thresholds, the deviations that make the
+ * plant integrated and the maxima of the rules come from plant_vars.h. */
 int fp_check(const FpParams *p, char *msg, size_t len);
 
 /* The state at the start (Plant.reset): at x0 with v0, spring relaxed, no force

@@ -503,6 +503,7 @@ def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary) -> 
         full = {**PLANT_DEFAULTS, **values}
         found = plant_problems(full)
         assert native.check(full) == (found[0][1] if found else None)
+        assert not found or len(found[0][1].encode()) < 300  # (plant.h: msg of 512 holds it)
         first.add(next((i for i, rule in enumerate(PLANT_CONSTRAINTS)
                         if rule.check(full) is not None), None))
 
