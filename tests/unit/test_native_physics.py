@@ -13,6 +13,12 @@ layer bit for bit (``float.hex``), with no deviation (the closed form of Eq. (1)
 with each deviation (the same RODAS4 steps, event locations and counter-based
 draws) and with all of them at once; a state copied mid-run continues exactly as
 the model layer's restored state does.
+
+The rules between parameters: ``fp_check`` accepts and refuses the parameter sets that
+:func:`papwc.model.plant.plant_problems` accepts and refuses, with its first message word
+for word, over sets drawn at the ends of the ranges and on or one double beside each rule's
+boundary (every rule of PLANT_CONSTRAINTS is reached), and the rules' data in
+``plant_vars.h`` are the model layer's tables.
 """
 
 from __future__ import annotations
