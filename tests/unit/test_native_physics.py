@@ -522,7 +522,16 @@ def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary) -> 
 #: An integrated deviation on, per deviation of INTEGRATED (with what it needs).
 ON = {"v_s": {"v_s": 1e-3}, "sigma_0": {"sigma_0": 1e6, "sigma_1": 1e3}, "ripple": {"ripple": 0.1},
       "tau_u": {"tau_u": 2e-3}, "m_d": {"m_d": 50.0, "k_t": 1e5}}
-BELOW = math.nextafter  # readable alias below: BELOW(x, 0.0) is the double under x > 0
+
+
+def below(x: float) -> float:
+    """The double just under ``x``."""
+    return math.nextafter(x, -math.inf)
+
+
+def above(x: float) -> float:
+    """The double just over ``x``."""
+    return math.nextafter(x, math.inf)
 
 
 def _cases() -> list[tuple[dict[str, float], str | None]]:
@@ -531,30 +540,30 @@ def _cases() -> list[tuple[dict[str, float], str | None]]:
     out: list[tuple[dict[str, float], str | None]] = [
         ({}, None),
         ({"f_c": 140.0}, "f_s"),
-        ({"f_s": BELOW(100.0, 0.0)}, "f_s"),
+        ({"f_s": below(100.0)}, "f_s"),
         ({"f_s": 100.0}, None),
     ]
     for name, low in OFF_OR_AT_LEAST.items():
         extra = {"k_t": 1.0} if name == "m_d" else {}
-        out += [({name: BELOW(low, 0.0), **extra}, name), ({name: 5e-324, **extra}, name),
+        out += [({name: below(low), **extra}, name), ({name: 5e-324, **extra}, name),
                 ({name: low, **extra}, None)]
     for name, low in INTEGRATED_OFF_OR_AT_LEAST.items():
         extra = {"f_c": 0.0} if name == "f_s" else {}
-        out += [({name: BELOW(low, 0.0), **extra}, None),  # Eq. (1) alone: no bound
-                ({name: BELOW(low, 0.0), **extra, **ON["v_s"], **ON["ripple"]}, name),
+        out += [({name: below(low), **extra}, None),  # Eq. (1) alone: no bound
+                ({name: below(low), **extra, **ON["v_s"], **ON["ripple"]}, name),
                 ({name: low, **extra, **ON["tau_u"]}, None)]
         out += [({name: 1e-300, **extra, **on}, name) for on in ON.values()]
     for on in ON.values():
         m = 130.0 / ACCELERATION_MAX
-        out += [({"m": m, "c": 0.0, **on}, None), ({"m": BELOW(m, 0.0), "c": 0.0, **on}, "m"),
+        out += [({"m": m, "c": 0.0, **on}, None), ({"m": below(m), "c": 0.0, **on}, "m"),
                 ({"m": 1e-6, "f_s": 1e9, "f_c": 1.0, **on}, "m"),
                 ({"c": 150.0 * DAMPING_RATE_MAX, **on}, None),
-                ({"c": BELOW(150.0 * DAMPING_RATE_MAX, math.inf), **on}, "c"),
+                ({"c": above(150.0 * DAMPING_RATE_MAX), **on}, "c"),
                 ({"c": 1e9, "m": 1e-6, "f_s": 1e-3, "f_c": 1e-3, **on}, "c")]
     out += [({"m": 1e-6, "f_s": 1e9}, None), ({"c": 1e9, "m": 1e-6}, None)]  # Eq. (1) alone
     rate = DAMPING_RATE_MAX / (1.0 / 150.0 + 1.0 / 50.0)
     out += [({**ON["m_d"], "c_t": rate}, None),
-            ({**ON["m_d"], "c_t": BELOW(rate, math.inf)}, "c_t"),
+            ({**ON["m_d"], "c_t": above(rate)}, "c_t"),
             ({"m_d": 1e-3, "k_t": 1e-12, "c_t": 999e6}, "c_t"),
             ({"f_s_spread": 0.5}, "f_s_spread"),
             ({"sigma_0": 1e6, "f_c": 0.0, "f_s": 0.0}, "sigma_0"),
