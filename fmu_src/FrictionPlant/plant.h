@@ -1,0 +1,65 @@
+/* plant.h: the friction plant of papwc in C (Eq. (1) and its deviations).
+ *
+ * The same physics as the Python model layer (papwc.model.dynamics.Plant,
+ * papwc.model.stickslip, papwc.model.rodas, papwc.model.effects), written
+ * operation for operation in the same order: with every deviation at its
+ * default a step is bit for bit that of Plant; with deviations it is the same
+ * RODAS4 integration, event location and counter-based random draws.
+ * tests/unit/test_native_physics.py checks the two against each other.
+ *
+ * C99, re-entrant: no globals, no allocation. Units are SI (kg, N, N.s/m, m,
+ * m/s, s). Compile without -ffast-math and with -ffp-contract=off.
+ */
+#ifndef FP_PLANT_H
+#define FP_PLANT_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "plant_vars.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The plant's full state (papwc.model.dynamics.STATE_FIELDS): plain data, no
+ * pointers, so copying it copies the state whole, random-draw counters included. */
+typedef struct {
+    double x;              /* table position, m */
+    double v;              /* table velocity, m/s (exactly 0.0 while stuck) */
+    double z;              /* LuGre bristle deflection, m */
+    double x_d;            /* motor position of the flexible drive, m */
+    double v_d;            /* motor velocity, m/s */
+    double f_a;            /* force applied by the lagging actuator, N */
+    double f_s_now;        /* breakaway force in effect (random stiction), N */
+    uint64_t stick_draws;  /* breakaway forces drawn so far */
+    uint64_t noise_draws;  /* encoder noise numbers drawn so far */
+    double noise;          /* encoder noise at the last communication point, m */
+    double h_next;         /* the integrator's step size proposal, s (0: none yet) */
+} FpState;
+
+/* The model layer's default of every parameter (PLANT_DEFAULTS). */
+void fp_defaults(FpParams *p);
+
+/* The rules between parameters (papwc.model.plant.PLANT_CONSTRAINTS): 0 if all hold,
+ * else nonzero and msg names the first rule violated with the values. The range of
+ * each parameter on its own is not checked here (FP_PARAMETERS gives it). */
+int fp_check(const FpParams *p, char *msg, size_t len);
+
+/* The state at the start (Plant.reset): at x0 with v0, spring relaxed, no force
+ * applied, the first breakaway force and encoder noise drawn. */
+void fp_reset(FpState *s, const FpParams *p);
+
+/* Advance over h (s) with the force u (N) held (Plant.step). 0: done; nonzero: refused
+ * (u not finite, h not finite and > 0, or what Plant.step refuses), the state is left
+ * as it was and msg says why. */
+int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t len);
+
+/* The outputs at the last communication point: x, v, x_meas (Plant.x_meas), stuck. */
+void fp_outputs(const FpState *s, const FpParams *p, FpOutputs *y);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -1,0 +1,159 @@
+"""The C plant (fmu_src/FrictionPlant/plant.c) compiled for the host and loaded with ctypes.
+
+:func:`compiler` finds a C compiler (the system ``cc``, ``gcc`` or ``clang``, else
+``python -m ziglang cc``); :func:`build_plant_library` writes ``plant_vars.h`` with
+:func:`papwc.fmubuild.native_tables.write_plant_header` and compiles ``plant.c`` into
+a shared library with the flags that keep IEEE double arithmetic as Python does it
+(``-O2 -ffp-contract=off``, no ``-ffast-math``); :class:`NativePlant` wraps its API
+(``plant.h``) with the structs laid out as there.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import importlib.util
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+from papwc.fmubuild.native_tables import write_plant_header
+from papwc.model.plant import PLANT_OUTPUTS, PLANT_PARAMETERS
+
+PROJECT_DIR = Path(__file__).resolve().parent.parent
+PLANT_SOURCES = (PROJECT_DIR / "fmu_src" / "FrictionPlant" / "plant.c",)
+PLANT_INCLUDE = PROJECT_DIR / "fmu_src" / "FrictionPlant"
+#: Flags of every compilation of the plant: C99, optimized, no contraction into FMA.
+CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fPIC", "-shared", "-Wall", "-Wextra")
+
+_CTYPES = {"Real": ctypes.c_double, "Integer": ctypes.c_int32, "Boolean": ctypes.c_int}
+
+
+class FpParams(ctypes.Structure):
+    """``FpParams`` of plant_vars.h: one field per parameter, in PLANT_PARAMETERS order."""
+
+    _fields_ = [(v.name, _CTYPES[v.type]) for v in PLANT_PARAMETERS]
+
+
+class FpOutputs(ctypes.Structure):
+    """``FpOutputs`` of plant_vars.h."""
+
+    _fields_ = [(v.name, _CTYPES[v.type]) for v in PLANT_OUTPUTS]
+
+
+class FpState(ctypes.Structure):
+    """``FpState`` of plant.h (the fields of papwc.model.dynamics.STATE_FIELDS)."""
+
+    _fields_ = [("x", ctypes.c_double), ("v", ctypes.c_double), ("z", ctypes.c_double),
+                ("x_d", ctypes.c_double), ("v_d", ctypes.c_double), ("f_a", ctypes.c_double),
+                ("f_s_now", ctypes.c_double), ("stick_draws", ctypes.c_uint64),
+                ("noise_draws", ctypes.c_uint64), ("noise", ctypes.c_double),
+                ("h_next", ctypes.c_double)]
+
+
+def compiler() -> list[str] | None:
+    """The command of a C compiler on this machine, or None."""
+    for name in ("cc", "gcc", "clang"):
+        path = shutil.which(name)
+        if path:
+            return [path]
+    if importlib.util.find_spec("ziglang") is not None:
+        return [sys.executable, "-m", "ziglang", "cc"]
+    return None
+
+
+def build_plant_library(folder: Path, command: list[str] | None = None) -> Path:
+    """Write plant_vars.h into ``folder`` and compile plant.c there; the library's path.
+
+    Raises
+    ------
+    RuntimeError
+        If no compiler is found or the compilation fails (its output in the message).
+    """
+    command = command or compiler()
+    if command is None:
+        raise RuntimeError("no C compiler (cc, gcc, clang or the ziglang package)")
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    write_plant_header(folder / "plant_vars.h")
+    library = folder / ("plant.dll" if sys.platform == "win32" else "libplant.so")
+    args = [*command, *CFLAGS, f"-I{folder}", f"-I{PLANT_INCLUDE}", "-o", str(library),
+            *map(str, PLANT_SOURCES), "-lm"]
+    done = subprocess.run(args, capture_output=True, text=True, check=False)
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(args)} failed:\n{done.stdout}{done.stderr}")
+    return library
+
+
+class NativeLibrary:
+    """The compiled plant's functions with their argument types."""
+
+    def __init__(self, path: Path) -> None:
+        lib = ctypes.CDLL(str(path))
+        lib.fp_defaults.argtypes = [ctypes.POINTER(FpParams)]
+        lib.fp_defaults.restype = None
+        lib.fp_check.argtypes = [ctypes.POINTER(FpParams), ctypes.c_char_p, ctypes.c_size_t]
+        lib.fp_check.restype = ctypes.c_int
+        lib.fp_reset.argtypes = [ctypes.POINTER(FpState), ctypes.POINTER(FpParams)]
+        lib.fp_reset.restype = None
+        lib.fp_step.argtypes = [ctypes.POINTER(FpState), ctypes.POINTER(FpParams),
+                                ctypes.c_double, ctypes.c_double, ctypes.c_char_p,
+                                ctypes.c_size_t]
+        lib.fp_step.restype = ctypes.c_int
+        lib.fp_outputs.argtypes = [ctypes.POINTER(FpState), ctypes.POINTER(FpParams),
+                                   ctypes.POINTER(FpOutputs)]
+        lib.fp_outputs.restype = None
+        self.lib = lib
+
+    def params(self, values: dict[str, Any] | None = None) -> FpParams:
+        """The defaults of fp_defaults with ``values`` set over them."""
+        p = FpParams()
+        self.lib.fp_defaults(ctypes.byref(p))
+        for name, value in (values or {}).items():
+            setattr(p, name, value)
+        return p
+
+    def check(self, values: dict[str, Any]) -> str | None:
+        """fp_check's message for these parameters, or None if they are accepted."""
+        buf = ctypes.create_string_buffer(512)
+        if self.lib.fp_check(ctypes.byref(self.params(values)), buf, len(buf)) == 0:
+            return None
+        return buf.value.decode()
+
+
+class NativePlant:
+    """A C plant with the interface of :class:`papwc.model.dynamics.Plant` that tests use."""
+
+    def __init__(self, library: NativeLibrary, params: dict[str, Any]) -> None:
+        self._lib = library.lib
+        self.params = library.params(params)
+        self.state = FpState()
+        self._msg = ctypes.create_string_buffer(256)
+        self.reset()
+
+    def reset(self) -> None:
+        self._lib.fp_reset(ctypes.byref(self.state), ctypes.byref(self.params))
+
+    def step(self, u: float, h: float) -> str | None:
+        if self._lib.fp_step(ctypes.byref(self.state), ctypes.byref(self.params), u, h,
+                             self._msg, len(self._msg)) == 0:
+            return None
+        return self._msg.value.decode()
+
+    def outputs(self) -> FpOutputs:
+        y = FpOutputs()
+        self._lib.fp_outputs(ctypes.byref(self.state), ctypes.byref(self.params),
+                             ctypes.byref(y))
+        return y
+
+    def copy_state(self) -> FpState:
+        """A copy of the state struct (bytes copied, as memcpy does)."""
+        return FpState.from_buffer_copy(self.state)
+
+    def set_state(self, state: FpState) -> None:
+        ctypes.memmove(ctypes.byref(self.state), ctypes.byref(state), ctypes.sizeof(FpState))
+
+    def fields(self) -> dict[str, float | int]:
+        """The state as :meth:`papwc.model.dynamics.Plant.state` gives it."""
+        return {name: getattr(self.state, name) for name, _ in FpState._fields_}
