@@ -52,6 +52,7 @@ typedef struct {
     char *name;
     unsigned categories; /* categories logged; 0: logging off */
     int step_told;       /* a refused step has been written to stderr */
+    int discarded;       /* the last step was refused with fmi2Discard */
     Phase phase;
     double time;         /* the last communication point, s */
     void *model;
@@ -352,6 +353,7 @@ fmi2Status fmi2Reset(fmi2Component c) {
     inst->phase = PHASE_INSTANTIATED;
     inst->time = 0.0;
     inst->step_told = 0;
+    inst->discarded = 0;
     return fmi2OK;
 }
 
@@ -596,6 +598,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     if (check_state(inst, "fmi2SetFMUstate", state) != fmi2OK) return fmi2Error;
     inst->phase = (Phase)state->phase;
     inst->time = state->time;
+    inst->discarded = 0;
     memcpy(inst->model, state + 1, model_data_size());
     return fmi2OK;
 }
@@ -753,9 +756,11 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         }
         if (model_step(inst->model, h, why, sizeof why) == 0) {
             inst->time = t + h;
+            inst->discarded = 0;
             return fmi2OK;
         }
     }
+    inst->discarded = 1;
     snprintf(line, sizeof line, "doStep(t = %s s, h = %s s) refused: %s; the state is left as "
              "it was", t_text, h_text, why);
     log_text(inst, fmi2Discard, CATEGORY_DISCARD, line);
@@ -798,7 +803,9 @@ fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Int
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
     INSTANCE_OR_ERROR(c);
     if (s == fmi2Terminated && value != NULL) {
-        *value = fmi2False; /* the FMU never asks to end the simulation */
+        /* after a refused step the simulation cannot go on as the host asked: it should end
+         * (or restore a state) rather than repeat the same step */
+        *value = inst->discarded ? fmi2True : fmi2False;
         return fmi2OK;
     }
     return refuse(inst, fmi2Discard, "fmi2GetBooleanStatus: only fmi2Terminated is given");

@@ -235,17 +235,22 @@ def config_header(name: str, guid_text: str, variables: Sequence[Variable]) -> s
 # --- compiling --------------------------------------------------------------------------------
 
 
-def _compile(sources: Path, target: str, suffix: str, extra: Sequence[str], out: Path,
-             name: str) -> None:
-    c_files = sorted(str(p) for p in sources.glob("*.c"))
-    command = [*zig_command(), "-target", target, *C_FLAGS, "-shared", *extra,
-               "-I", str(sources), "-o", str(out), *c_files]
+def _compile(tree: Path, target: str, extra: Sequence[str], out: Path, name: str) -> None:
+    """Compile ``tree/sources/*.c`` for ``target`` into ``out`` (a path inside ``tree``).
+
+    zig runs in ``tree`` with relative paths only, so no path of the build folder ends up
+    in the binary: the same sources give the same bytes.
+    """
+    c_files = sorted(p.relative_to(tree).as_posix() for p in (tree / "sources").glob("*.c"))
+    relative = out.relative_to(tree).as_posix()
+    command = [*zig_command(), "-target", target, *C_FLAGS, "-shared", "-s", *extra,
+               "-I", "sources", "-o", relative, *c_files]
     env = dict(os.environ)
     # zig keeps a cache of compiled objects; a private one per user in the temp folder
     env.setdefault("ZIG_GLOBAL_CACHE_DIR", str(Path(tempfile.gettempdir()) / "papwc-zig-cache"))
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=600, env=env,
-                              check=False, cwd=str(out.parent))
+                              check=False, cwd=str(tree))
     except (OSError, subprocess.TimeoutExpired) as exc:
         raise BuildError(f"cannot build {name}.fmu for {target}: zig did not run: {exc}") from exc
     if done.returncode != 0:
@@ -279,19 +284,23 @@ def fat_macho(thin: Sequence[bytes]) -> bytes:
     return head + b"\0" * (offset - len(head)) + body
 
 
-def compile_binaries(sources: Path, binaries: Path, name: str) -> list[Path]:
-    """Compile ``sources/*.c`` for every platform of :data:`TARGETS` into ``binaries/``."""
+def compile_binaries(tree: Path, name: str) -> list[Path]:
+    """Compile ``tree/sources/*.c`` for every platform of :data:`TARGETS` into
+    ``tree/binaries/<platform>/``."""
+    binaries = tree / "binaries"
     written = []
     for folder, (targets, suffix, extra) in TARGETS.items():
         (binaries / folder).mkdir(parents=True, exist_ok=True)
         out = binaries / folder / f"{name}{suffix}"
+        if suffix == ".dylib":  # the install name is the file's, not the build folder's
+            extra = (*extra, f"-Wl,-install_name,@rpath/{name}{suffix}")
         if len(targets) == 1:
-            _compile(sources, targets[0], suffix, extra, out, name)
+            _compile(tree, targets[0], extra, out, name)
         else:
             thin = []
             for target in targets:
                 part = binaries / folder / f"{name}.{target}{suffix}"
-                _compile(sources, target, suffix, extra, part, name)
+                _compile(tree, target, extra, part, name)
                 thin.append(part.read_bytes())
                 part.unlink()
             out.write_bytes(fat_macho(thin))
@@ -557,7 +566,7 @@ def build_native(source: NativeSource, out_dir: Path) -> Path:
             (sources / file_name).write_text(text, encoding="utf-8")
         (sources / "fmu_config.h").write_text(config_header(name, guid_text, source.variables),
                                               encoding="utf-8")
-        compile_binaries(sources, tree / "binaries", name)
+        compile_binaries(tree, name)
         docs = tree / "documentation"
         docs.mkdir()
         for doc in source.documentation:

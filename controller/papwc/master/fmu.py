@@ -166,6 +166,11 @@ class FmuSlave:
                 raise FmuError(f"{self.fmu_path}: cannot extract: {exc}") from exc
         self.unzip_dir = str(unzip_dir)
         self._can_state = bool(self.md.coSimulation.canGetAndSetFMUstate)
+        #: Whether initialization has been entered since the instance was made or reset: a
+        #: new initialization then starts with fmi2Reset (a pythonfmu FMU, which has no
+        #: reset of its own, takes fmi2SetupExperiment again instead).
+        self._entered = False
+        self._resets = not (self.md.generationTool or "").startswith("PythonFMU")
         self._refresh: Callable[[], None] = lambda: None
         self._real_read: tuple[Any, ...] | None = None
         #: What a Real input was last set to, by name: [value, sign of value] or [NaN]
@@ -225,6 +230,7 @@ class FmuSlave:
         self._call("fmi2Instantiate", lambda: self._fmu.instantiate(
             callbacks=self._callbacks, loggingOn=True))
         self._c.value = self._fmu.component
+        self._entered = False
 
     def _call(self, name: str, fn: Callable[[], Any]) -> Any:
         from fmpy.fmi1 import FMICallException
@@ -407,14 +413,24 @@ class FmuSlave:
         """
         self.time = float(start_time)
         self._forget_inputs()
+        if self._entered and self._resets:
+            self._free_snapshot()
+            self._call("fmi2Reset", self._fmu.reset)
+        self._entered = True
         self._call("fmi2SetupExperiment", lambda: self._fmu.setupExperiment(
             startTime=start_time))
         self._set_now(self._start)
         self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
         n_log = len(self.log)
-        self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+        try:
+            self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+            failed = None
+        except FmuError as exc:  # a native FMU refuses the parameters with fmi2Error
+            failed = exc
         new = list(self.log)[n_log:] if n_log < _LOG_KEPT else list(self.log)
         refused = [m for m in new if m.startswith(("[Error]", "[Fatal]"))]
+        if failed is not None and not refused:
+            raise failed
         if refused:
             raise FmuError(f"{self.name}: fmi2ExitInitializationMode at t = {self.time!r} s "
                            "refused the parameters: " + "; ".join(refused))
