@@ -627,3 +627,54 @@ def test_the_pythonfmu_bundle_refuses_python_older_than_3_10(pythonfmu_plant_fmu
     assert done.returncode != 0
     assert ("FrictionPlant.fmu (pythonfmu) needs Python 3.10 or newer in the host; this host "
             "runs Python 3.") in done.stderr
+
+
+# --- a battery worker reuses its plant ---------------------------------------------------------
+
+
+@pytest.mark.slow
+def test_a_worker_reuses_one_plant_instance_with_the_results_of_fresh_ones(
+        friction_plant_fmu: Path, friction_plant_unzipped: Path, paper_toml: Path) -> None:
+    """run_scenario with an extracted copy (what a battery worker passes) keeps the plant
+    for the next controller and run (fmi2Reset); the results are those of fresh instances."""
+    import dataclasses
+
+    from papwc import runner
+    from papwc.scenario import load_scenario
+
+    scenario = load_scenario(paper_toml)
+    maneuver = dataclasses.replace(scenario.maneuver, iterations=2, duration=0.5)
+    scenario = dataclasses.replace(scenario, maneuver=maneuver)
+    runner._IDLE_PLANTS.clear()
+    fresh = runner.run_scenario(scenario, "fmu", friction_plant_fmu)
+    assert runner._IDLE_PLANTS == {}  # without an extracted copy: closed after each use
+    reused = [runner.run_scenario(scenario, "fmu", friction_plant_fmu,
+                                  unzip_dir=friction_plant_unzipped) for _ in range(2)]
+    try:
+        (kept,) = runner._IDLE_PLANTS.values()
+        assert kept.reusable
+        for results in reused:
+            assert [r.error for r in results] == [r.error for r in fresh]
+            for a, b in zip(results, fresh, strict=True):
+                assert [t.columns["x"] for t in a.traces] == [t.columns["x"] for t in b.traces]
+        assert len(fresh) > 1 and fresh[0].traces
+    finally:
+        for slave in runner._IDLE_PLANTS.values():
+            slave.close()
+        runner._IDLE_PLANTS.clear()
+
+
+@pytest.mark.slow
+def test_papwc_build_backend_pythonfmu_writes_the_pythonfmu_plant(tmp_path: Path) -> None:
+    from papwc.fmubuild.fmus import is_current
+    from papwc.fmubuild.model_description import read_model_description as read_md
+
+    out = tmp_path / "build"
+    done = subprocess.run([sys.executable, "-m", "papwc.cli", "build", "--backend", "pythonfmu",
+                           "--out", str(out)], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=600, check=False)
+    assert done.returncode == 0, done.stderr
+    plant = out / "FrictionPlant.fmu"
+    assert read_md(plant).get("generationTool").startswith("PythonFMU")
+    assert is_current(plant, "FrictionPlant", backend="pythonfmu")
+    assert not is_current(plant, "FrictionPlant")  # not the native one

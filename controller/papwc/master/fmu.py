@@ -262,6 +262,17 @@ class FmuSlave:
         """Causality of every variable of the FMU."""
         return {name: v.causality for name, v in self.vars.items()}
 
+    @property
+    def reusable(self) -> bool:
+        """Whether a new simulation may take this instance (``fmi2Reset`` brings it back to
+        its start; not after an fmi2Fatal, nor for a pythonfmu FMU, which has no reset)."""
+        return self._fmu is not None and self._resets and not getattr(self, "_fatal", False)
+
+    def replace_start_values(self, values: Mapping[str, Any]) -> None:
+        """Forget the start values set so far; set ``values`` (see :meth:`set_start_values`)."""
+        self._start.clear()
+        self.set_start_values(values)
+
     def set_start_values(self, values: Mapping[str, Any]) -> None:
         """Parameters and input start values, applied at every (re)initialization."""
         for name in values:
