@@ -473,7 +473,8 @@ static fmi2Status check_set(const Instance *inst, const char *function,
     }
     for (i = 0; i < nvr; i++) {
         if (lookup(inst, function, vr[i], type, &causality, &name) != fmi2OK) return fmi2Error;
-        value_text(type, values, i, given, sizeof given);
+        if (causality == MODEL_INPUT && inst->phase != PHASE_TERMINATED) continue;
+        value_text(type, values, i, given, sizeof given); /* only for a message */
         if (causality == MODEL_OUTPUT) {
             return refuse(inst, fmi2Error, "%s is an output and cannot be set: %s refused",
                           name, given);
@@ -729,48 +730,58 @@ fmi2Status fmi2GetRealOutputDerivatives(fmi2Component c, const fmi2ValueReferenc
                   "(maxOutputDerivativeOrder is 0)");
 }
 
-fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
-                      fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
-    char t_text[48], h_text[48], last[48], why[MESSAGE_LEN], line[MESSAGE_LEN + 160];
-    double t = currentCommunicationPoint, h = communicationStepSize, tol;
-    INSTANCE_OR_ERROR(c);
-    (void)noSetFMUStatePriorToCurrentPoint;
+/* A refused step: the message, logged (status) and, the first time, told on stderr. */
+static fmi2Status refuse_step(Instance *inst, fmi2Status status, double t, double h,
+                              const char *why, int tell_it) {
+    char t_text[48], h_text[48], line[MESSAGE_LEN + 160];
     fmu_format_real(t, t_text, sizeof t_text);
     fmu_format_real(h, h_text, sizeof h_text);
-    if (inst->phase != PHASE_STEP_COMPLETE) {
-        return refuse(inst, fmi2Error, "doStep(t = %s s, h = %s s) refused: the instance is %s%s",
-                      t_text, h_text, phase_name(inst->phase),
-                      inst->phase == PHASE_INITIALIZATION
-                          ? " (fmi2ExitInitializationMode refused the parameters or was not "
-                            "called)" : "");
-    }
-    if (!(h > 0.0) || !isfinite(h)) {
-        snprintf(why, sizeof why, "step size %s s must be finite and > 0", h_text);
-    } else {
-        tol = 1e-9 * (fabs(inst->time) > h ? fabs(inst->time) : h);
-        if (!isfinite(t) || fabs(t - inst->time) > tol) {
-            fmu_format_real(inst->time, last, sizeof last);
-            return refuse(inst, fmi2Error, "doStep(t = %s s, h = %s s) refused: the "
-                          "communication point must be the end of the last step, t = %s s; "
-                          "the state is left as it was", t_text, h_text, last);
-        }
-        if (model_step(inst->model, h, why, sizeof why) == 0) {
-            inst->time = t + h;
-            inst->discarded = 0;
-            return fmi2OK;
-        }
-    }
-    inst->discarded = 1;
     snprintf(line, sizeof line, "doStep(t = %s s, h = %s s) refused: %s; the state is left as "
              "it was", t_text, h_text, why);
-    log_text(inst, fmi2Discard, CATEGORY_DISCARD, line);
-    if (!inst->step_told) {
+    log_text(inst, status, status == fmi2Discard ? CATEGORY_DISCARD : CATEGORY_ERROR, line);
+    if (tell_it && !inst->step_told) {
         inst->step_told = 1;
         snprintf(line, sizeof line, "doStep(t = %s s, h = %s s) refused: %s; the state is left "
                  "as it was (later refusals are only logged)", t_text, h_text, why);
         tell(inst, line);
     }
-    return fmi2Discard;
+    return status;
+}
+
+fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
+                      fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint) {
+    char why[MESSAGE_LEN], last[48];
+    double t = currentCommunicationPoint, h = communicationStepSize, tol;
+    INSTANCE_OR_ERROR(c);
+    (void)noSetFMUStatePriorToCurrentPoint;
+    if (inst->phase != PHASE_STEP_COMPLETE) {
+        snprintf(why, sizeof why, "the instance is %s%s", phase_name(inst->phase),
+                 inst->phase == PHASE_INITIALIZATION
+                     ? " (fmi2ExitInitializationMode refused the parameters or was not called)"
+                     : "");
+        /* a refused initialization has been told already */
+        return refuse_step(inst, fmi2Error, t, h, why, inst->phase != PHASE_INITIALIZATION);
+    }
+    if (!(h > 0.0) || !isfinite(h)) {
+        fmu_format_real(h, last, sizeof last);
+        snprintf(why, sizeof why, "step size %s s must be finite and > 0", last);
+        inst->discarded = 1;
+        return refuse_step(inst, fmi2Discard, t, h, why, 1);
+    }
+    tol = 1e-9 * (fabs(inst->time) > h ? fabs(inst->time) : h);
+    if (!isfinite(t) || fabs(t - inst->time) > tol) {
+        fmu_format_real(inst->time, last, sizeof last);
+        snprintf(why, sizeof why, "the communication point must be the end of the last step, "
+                 "t = %s s", last);
+        return refuse_step(inst, fmi2Error, t, h, why, 1);
+    }
+    if (model_step(inst->model, h, why, sizeof why) != 0) {
+        inst->discarded = 1;
+        return refuse_step(inst, fmi2Discard, t, h, why, 1);
+    }
+    inst->time = t + h;
+    inst->discarded = 0;
+    return fmi2OK;
 }
 
 fmi2Status fmi2CancelStep(fmi2Component c) {

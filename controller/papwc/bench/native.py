@@ -36,8 +36,9 @@ def step_loop(fmu_path: Path, unzip_root: Path, params: dict[str, float], arrays
     """An instance with ``params``; return (loop(forces) -> s per step, close()).
 
     ``arrays=False``: FMU2Slave's methods (``setReal(vrs, values)``, ...), as a script
-    calls them; ``arrays=True``: fmpy's bound fmi2 functions with ctypes arrays made once,
-    as papwc's master calls them (:class:`papwc.master.FmuSlave`).
+    calls them; ``arrays=True``: the fmi2 functions of the library fmpy loaded, as bare
+    function pointers with ctypes arguments made once, as papwc's master calls them
+    (:class:`papwc.master.FmuSlave`).
     """
     import ctypes
 
@@ -60,18 +61,23 @@ def step_loop(fmu_path: Path, unzip_root: Path, params: dict[str, float], arrays
     h = 0.01
 
     def loop_arrays(forces: list[float]) -> float:
-        c = slave.component
-        set_real, do_step, get_real = slave.fmi2SetReal, slave.fmi2DoStep, slave.fmi2GetReal
+        c = ctypes.c_void_p(slave.component)
+        bare = ctypes.CFUNCTYPE(ctypes.c_int)  # no argtypes: the ctypes objects pass as they are
+        set_real, do_step, get_real = (
+            bare(ctypes.cast(getattr(slave.dll, name), ctypes.c_void_p).value)
+            for name in ("fmi2SetReal", "fmi2DoStep", "fmi2GetReal"))
         vr_u, vr_x = (ctypes.c_uint * 1)(*vr_in), (ctypes.c_uint * 1)(*vr_out)
         u_buf, x_buf, one = (ctypes.c_double * 1)(), (ctypes.c_double * 1)(), ctypes.c_size_t(1)
+        t_c, h_c = ctypes.c_double(0.0), ctypes.c_double(h)
         k0 = clock["k"]
         with gc_paused():
             start = time.perf_counter_ns()
             for i, u in enumerate(forces):
                 u_buf[0] = u
-                set_real(c, vr_u, one, u_buf)
-                do_step(c, (k0 + i) * h, h, 1)
-                get_real(c, vr_x, one, x_buf)
+                t_c.value = (k0 + i) * h
+                if set_real(c, vr_u, one, u_buf) or do_step(c, t_c, h_c, 1) or get_real(
+                        c, vr_x, one, x_buf):
+                    raise RuntimeError(f"bench: {fmu_path} refused a step")
             elapsed = time.perf_counter_ns() - start
         clock["k"] = k0 + len(forces)
         return elapsed * 1e-9 / len(forces)
