@@ -1,7 +1,7 @@
 """The C plant (fmu_src/FrictionPlant/plant.c) compiled for the host and loaded with ctypes.
 
-:func:`compiler` finds a C compiler (the system ``cc``, ``gcc`` or ``clang``, else
-``python -m ziglang cc``); :func:`build_plant_library` writes ``plant_vars.h`` with
+:func:`compiler` finds a C compiler (``PAPWC_TEST_CC``, else the system ``cc``, ``gcc`` or
+``clang``, else ``python -m ziglang cc``); :func:`build_plant_library` writes ``plant_vars.h`` with
 :func:`papwc.fmubuild.native_tables.write_plant_header` and compiles ``plant.c`` into
 a shared library with the flags that keep IEEE double arithmetic as Python does it
 (``-O2 -ffp-contract=off``, no ``-ffast-math``); :class:`NativePlant` wraps its API
@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import ctypes
 import importlib.util
+import os
 import shutil
 import subprocess
 import sys
@@ -53,7 +54,14 @@ class FpState(ctypes.Structure):
 
 
 def compiler() -> list[str] | None:
-    """The command of a C compiler on this machine, or None."""
+    """The command of a C compiler on this machine, or None.
+
+    ``PAPWC_TEST_CC`` (a command, split at spaces) chooses one, e.g.
+    ``"python -m ziglang cc -target x86_64-linux-gnu.2.17"``: the toolchain of the FMU.
+    """
+    chosen = os.environ.get("PAPWC_TEST_CC", "").split()
+    if chosen:
+        return chosen
     for name in ("cc", "gcc", "clang"):
         path = shutil.which(name)
         if path:
@@ -101,6 +109,9 @@ class NativeLibrary:
                                 ctypes.c_double, ctypes.c_double, ctypes.c_char_p,
                                 ctypes.c_size_t]
         lib.fp_step.restype = ctypes.c_int
+        lib.fp_state_check.argtypes = [ctypes.POINTER(FpState), ctypes.c_char_p,
+                                        ctypes.c_size_t]
+        lib.fp_state_check.restype = ctypes.c_int
         lib.fp_outputs.argtypes = [ctypes.POINTER(FpState), ctypes.POINTER(FpParams),
                                    ctypes.POINTER(FpOutputs)]
         lib.fp_outputs.restype = None
@@ -118,6 +129,14 @@ class NativeLibrary:
         """fp_check's message for these parameters, or None if they are accepted."""
         buf = ctypes.create_string_buffer(512)
         if self.lib.fp_check(ctypes.byref(self.params(values)), buf, len(buf)) == 0:
+            return None
+        return buf.value.decode()
+
+
+    def state_check(self, state: FpState) -> str | None:
+        """fp_state_check's message for this state, or None if it can be restored."""
+        buf = ctypes.create_string_buffer(256)
+        if self.lib.fp_state_check(ctypes.byref(state), buf, len(buf)) == 0:
             return None
         return buf.value.decode()
 

@@ -25,13 +25,60 @@
 
 /* ---- messages ---------------------------------------------------------------------------- */
 
+/* Whether the decimal n*10^e reads back as x. */
+static int reads_back(unsigned long long n, int e, double x)
+{
+    char buf[48];
+    double back;
+    snprintf(buf, sizeof buf, "%llue%d", n, e);
+    return sscanf(buf, "%lf", &back) == 1 && back == x;
+}
+
+/* The shortest decimal n*10^e (n with p <= 17 digits) that reads back as x > 0, and of
+ * those the nearest to x, as Python's repr finds it. */
+static void shortest(double x, unsigned long long *n_out, int *e_out)
+{
+    char buf[48];
+    const char *c;
+    unsigned long long n = 0;
+    int p, e = 0;
+    for (p = 1; p <= 17; p++) {
+        snprintf(buf, sizeof buf, "%.*e", p - 1, x);
+        n = 0;
+        for (c = buf; *c && *c != 'e'; c++)
+            if (*c >= '0' && *c <= '9')
+                n = 10 * n + (unsigned long long)(*c - '0');
+        sscanf(c + 1, "%d", &e);
+        e -= p - 1;
+        /* The nearest p digits; else the p digits on the other side of x may read back. */
+        if (reads_back(n, e, x))
+            break;
+        if (n > 1 && reads_back(n - 1, e, x)) {
+            n -= 1;
+            break;
+        }
+        if (reads_back(n + 1, e, x)) {
+            n += 1;
+            break;
+        }
+    }
+    while (n >= 10 && n % 10 == 0) {
+        n /= 10;
+        e += 1;
+    }
+    *n_out = n;
+    *e_out = e;
+}
+
 /* x as Python's repr writes it (shortest digits that read back exactly). */
 static void py_repr(double x, char *out, size_t len)
 {
-    char buf[40], digits[24];
-    int p, e = 0, nd = 0, neg, i, pos = 0;
+    char digits[24], buf[16];
     const char *c;
-    double back;
+    unsigned long long n;
+    int e, nd, i, pos = 0;
+    if (len == 0)
+        return;
     if (x != x) {
         snprintf(out, len, "nan");
         return;
@@ -40,24 +87,15 @@ static void py_repr(double x, char *out, size_t len)
         snprintf(out, len, x > 0 ? "inf" : "-inf");
         return;
     }
-    for (p = 1; p <= 17; p++) {
-        snprintf(buf, sizeof buf, "%.*e", p - 1, x);
-        if (sscanf(buf, "%lf", &back) == 1 && back == x)
-            break;
-    }
-    neg = buf[0] == '-';
-    for (c = buf + neg; *c && *c != 'e'; c++)
-        if (*c >= '0' && *c <= '9' && nd < 20)
-            digits[nd++] = *c;
-    if (*c == 'e')
-        sscanf(c + 1, "%d", &e);
-    while (nd > 1 && digits[nd - 1] == '0')
-        nd--;
-    digits[nd] = '\0';
-    if (len == 0)
+    if (x == 0.0) {
+        snprintf(out, len, signbit(x) ? "-0.0" : "0.0");
         return;
+    }
+    shortest(fabs(x), &n, &e);
+    nd = snprintf(digits, sizeof digits, "%llu", n);
+    e += nd - 1; /* the exponent of the first digit */
 #define PUT(ch) do { if ((size_t)pos + 1 < len) out[pos++] = (ch); } while (0)
-    if (neg)
+    if (x < 0)
         PUT('-');
     if (e < -4 || e >= 16) {
         PUT(digits[0]);
@@ -285,6 +323,8 @@ static double quantize(double x, double resolution)
         return x;
     q = x / resolution;
     n = floor(q);
+    if (n == 0.0)
+        n = 0.0; /* math.floor gives the integer 0 for -0.0: no sign */
     return (q - n >= 0.5 ? n + 1.0 : n) * resolution;
 }
 
@@ -299,17 +339,26 @@ typedef struct {
     double rate_gain;  /* ActuatorLag.rate_gain = 1/tau_u, 1/s */
     int n, iz, ixd, ivd, ifa;
     double atol[FP_N_MAX], rtol[FP_N_MAX];
-    int fail;          /* Python would have raised: the step is refused */
+    int fail;          /* the step is refused */
+    const char *kind;  /* the exception Python raised there (NULL: a reason it returned) */
+    int bare;          /* Plant._integrate caught the exception: its text alone is the reason */
     char why[200];
 } Model;
 
-static void fail(Model *M, const char *text)
+/* Refuse the step: Python raised the exception `kind` with `text` here (kind NULL: Python
+ * returned `text` as the reason). The first failure is kept. */
+static void fail(Model *M, const char *kind, const char *text)
 {
     if (!M->fail) {
         M->fail = 1;
+        M->kind = kind;
         snprintf(M->why, sizeof M->why, "%s", text);
     }
 }
+
+#define ZERO_DIVISION "ZeroDivisionError"
+#define ARITHMETIC "ArithmeticError"
+#define VALUE "ValueError"
 
 /* Plant.__init__ and Plant._layout: which effects are present, the state vector. */
 static void model_init(Model *M, const FpParams *p, FpState *w)
@@ -431,7 +480,7 @@ static void ripple_factor(Model *M, double x, double *r, double *r_x)
     const FpParams *p = M->p;
     double arg = M->ripple_k * x + p->ripple_phase;
     if (isinf(arg))
-        fail(M, "the integration failed: ValueError: math domain error");
+        fail(M, VALUE, "math domain error");
     *r = 1.0 + p->ripple * sin(arg);
     *r_x = p->ripple * M->ripple_k * cos(arg);
 }
@@ -513,7 +562,7 @@ static void rates(Model *M, const double *y, double u, double s, double *out)
         sgn = v > 0.0 ? 1.0 : (v < 0.0 ? -1.0 : 0.0);
         level(M, x, v, sgn, &g, &g_x, &g_v);
         if (g == 0.0)
-            fail(M, "the integration failed: ZeroDivisionError: float division by zero");
+            fail(M, ZERO_DIVISION, "float division by zero");
         z = y[M->iz];
         z_rate = v - p->sigma_0 * fabs(v) * z / g;
         out[0] = v;
@@ -573,7 +622,7 @@ static void jacobian(Model *M, const double *y, double u, double s, double jac[]
         s0 = p->sigma_0;
         w = fabs(v);
         if (g == 0.0)
-            fail(M, "the integration failed: ZeroDivisionError: float division by zero");
+            fail(M, ZERO_DIVISION, "float division by zero");
         inv_g = 1.0 / g;
         dz_x = s0 * w * z * g_x * inv_g * inv_g;
         dz_v = 1.0 - s0 * z * (sgn - w * g_v * inv_g) * inv_g;
@@ -707,7 +756,7 @@ static int rodas4_step(Model *M, const double *y, const double *f0, double jac[]
     double *k1 = stages[0], *k2 = stages[1], *k3 = stages[2], *k4 = stages[3], *k5 = stages[4];
     double diag, inv_h, c21;
     if (GAMMA * h == 0.0 || h == 0.0) {
-        fail(M, "float division by zero");
+        fail(M, ZERO_DIVISION, "float division by zero");
         return 0;
     }
     diag = 1.0 / (GAMMA * h);
@@ -717,7 +766,7 @@ static int rodas4_step(Model *M, const double *y, const double *f0, double jac[]
     for (i = 0; i < n; i++)
         a[i][i] += diag;
     if (!inverse(n, a, inv)) {
-        fail(M, "singular iteration matrix");
+        fail(M, ZERO_DIVISION, "singular iteration matrix");
         return 0;
     }
     inv_h = 1.0 / h;
@@ -845,7 +894,7 @@ static int accepted_step(Model *M, const double *y, double u, double s, double *
         if (*steps > FP_MAX_STEPS) {
             snprintf(text, sizeof text, "the integrator needed more than %d steps in one "
                      "communication step", FP_MAX_STEPS);
-            fail(M, text);
+            fail(M, ARITHMETIC, text);
             return 1;
         }
         if (!rodas4_step(M, y, f0, jac, *h, u, s, y1, err, stages) || M->fail)
@@ -871,7 +920,7 @@ static int accepted_step(Model *M, const double *y, double u, double s, double *
         if (*h <= h_floor) {
             py_repr(*h, hr, sizeof hr);
             snprintf(text, sizeof text, "the integrator's step size fell below %s s", hr);
-            fail(M, text);
+            fail(M, ARITHMETIC, text);
             return 1;
         }
     }
@@ -958,7 +1007,7 @@ static int stuck_lag(Model *M, double *y, double u, double remaining, double *t_
         bound = u > 0.0 ? limit : -limit;
         arg = (f0 - u) / (bound - u);
         if (arg <= 0.0) {
-            fail(M, "the integration failed: ValueError: math domain error");
+            fail(M, VALUE, "math domain error");
             return 0;
         }
         t = tau * log(arg);
@@ -1027,8 +1076,11 @@ static int integrate(Model *M, double u, double h_total)
         last = h >= remaining;
         if (last)
             h = remaining;
-        if (accepted_step(M, y, u, s, &h, &steps, 1e-15 * h_total, y1, stages, &q, &shrunk))
+        if (accepted_step(M, y, u, s, &h, &steps, 1e-15 * h_total, y1, stages, &q, &shrunk)) {
+            /* Plant._integrate catches ArithmeticError here and returns its text. */
+            M->bare = M->kind != NULL && strcmp(M->kind, VALUE) != 0;
             return 1;
+        }
         last = last && !shrunk;
         grow = grow_factor(q);
         theta = lugre ? -1.0 : event(M, y, y1, stages, u, s);
@@ -1043,7 +1095,7 @@ static int integrate(Model *M, double u, double h_total)
         if (events > FP_MAX_EVENTS) {
             snprintf(text, sizeof text, "more than %d stick-slip events in one communication "
                      "step", FP_MAX_EVENTS);
-            fail(M, text);
+            fail(M, NULL, text);
             return 1;
         }
         h_event = theta * h;
@@ -1125,7 +1177,7 @@ int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t
     Model M;
     FpState w;
     double x1, v1;
-    char a[40], text[160];
+    char a[40], text[300];
     if (!isfinite(u)) {
         py_repr(u, a, sizeof a);
         snprintf(text, sizeof text, "input u = %s N is not finite", a);
@@ -1157,9 +1209,15 @@ int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t
     else
         integrate(&M, u, h);
     if (!M.fail && !state_finite(&w))
-        fail(&M, "the result would not be finite");
+        fail(&M, NULL, "the result would not be finite");
     if (M.fail) {
-        say(msg, len, M.why);
+        /* Plant._step_checked: an exception that reached it is "the integration failed". */
+        if (M.kind != NULL && !M.bare) {
+            snprintf(text, sizeof text, "the integration failed: %s: %s", M.kind, M.why);
+            say(msg, len, text);
+        } else {
+            say(msg, len, M.why);
+        }
         return 1;
     }
     if (M.encoder) {
@@ -1167,6 +1225,21 @@ int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t
         w.noise_draws += 1;
     }
     *s = w;
+    return 0;
+}
+
+int fp_state_check(const FpState *s, char *msg, size_t len)
+{
+    char a[40], text[120];
+#define FP_STATE_FINITE(name, type) \
+    if ((type) == FP_REAL && !isfinite((double)s->name)) { \
+        py_repr((double)s->name, a, sizeof a); \
+        snprintf(text, sizeof text, "plant state field %s = %s is not finite", #name, a); \
+        say(msg, len, text); \
+        return 1; \
+    }
+    FP_STATE_FIELDS(FP_STATE_FINITE)
+#undef FP_STATE_FINITE
     return 0;
 }
 

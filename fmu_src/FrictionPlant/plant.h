@@ -38,6 +38,13 @@ typedef struct {
     double h_next;         /* the integrator's step size proposal, s (0: none yet) */
 } FpState;
 
+/* The fields of FpState: X(name, type) with type FP_REAL (double) or FP_COUNT (uint64_t). */
+#define FP_COUNT 3
+#define FP_STATE_FIELDS(X) \
+    X(x, FP_REAL) X(v, FP_REAL) X(z, FP_REAL) X(x_d, FP_REAL) X(v_d, FP_REAL) \
+    X(f_a, FP_REAL) X(f_s_now, FP_REAL) X(stick_draws, FP_COUNT) X(noise_draws, FP_COUNT) \
+    X(noise, FP_REAL) X(h_next, FP_REAL)
+
 /* The model layer's default of every parameter (PLANT_DEFAULTS). */
 void fp_defaults(FpParams *p);
 
@@ -54,6 +61,10 @@ void fp_reset(FpState *s, const FpParams *p);
  * (u not finite, h not finite and > 0, or what Plant.step refuses), the state is left
  * as it was and msg says why. */
 int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t len);
+
+/* Whether a state (e.g. one deserialized) can be restored (Plant.set_state): 0 if every
+ * field is finite; else nonzero and msg names the field and its value. */
+int fp_state_check(const FpState *s, char *msg, size_t len);
 
 /* The outputs at the last communication point: x, v, x_meas (Plant.x_meas), stuck. */
 void fp_outputs(const FpState *s, const FpParams *p, FpOutputs *y);

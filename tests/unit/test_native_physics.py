@@ -18,6 +18,7 @@ the model layer's restored state does.
 from __future__ import annotations
 
 import math
+import random
 import re
 import sys
 from pathlib import Path
@@ -29,7 +30,7 @@ from hypothesis import strategies as st
 
 from papwc.fmubuild.native_tables import plant_header, value_references
 from papwc.model.dynamics import STATE_FIELDS, Plant
-from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES
+from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES, plant_problems
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from native_lib import NativeLibrary, NativePlant, build_plant_library, compiler  # noqa: E402
@@ -162,6 +163,17 @@ def test_eq1_is_the_model_layer_bit_for_bit(native: NativeLibrary, params: dict[
     run_both(native, params, steps, copy_at)
 
 
+@pytest.mark.parametrize("params", [
+    {"x0": -0.0, "x_resolution": 1e-9},
+    {"x0": -0.0, "v0": -0.0, "x_resolution": 1e-6, "f_c": 0.0, "f_s": 0.0, "c": 0.0},
+    {"x0": -4e-10, "x_resolution": 1e-9, "noise_std": 1e-12},
+])
+def test_signed_zeros_are_read_as_the_model_layer_reads_them(
+        native: NativeLibrary, params: dict[str, float]) -> None:
+    """math.floor gives an integer: the encoder's count of -0.0 is 0, with no sign."""
+    run_both(native, params, [(0.0, 0.01), (-0.0, 0.01), (1e-300, 0.01)], 1)
+
+
 @pytest.mark.parametrize("u, h", [(math.nan, 0.01), (math.inf, 0.01), (-math.inf, 0.01),
                                   (10.0, 0.0), (10.0, -0.01), (10.0, math.inf),
                                   (10.0, math.nan)])
@@ -178,8 +190,273 @@ def test_a_bad_input_or_step_is_refused_and_the_state_kept(
     assert native_view(plant) == before
 
 
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
+@pytest.mark.parametrize("field", [f for f in STATE_FIELDS if not f.endswith("_draws")])
+def test_a_state_with_a_field_not_finite_is_refused_as_set_state_does(
+        native: NativeLibrary, field: str, value: float) -> None:
+    plant = NativePlant(native, {"v_s": 1e-3})
+    assert plant.step(200.0, 0.01) is None
+    assert native.state_check(plant.state) is None
+    state = plant.copy_state()
+    setattr(state, field, value)
+    py = Plant({"v_s": 1e-3})
+    with pytest.raises(ValueError) as refused:
+        py.set_state({**py.state(), field: value})
+    assert native.state_check(state) == str(refused.value)
+
+
 def test_a_step_the_model_layer_refuses_is_refused(native: NativeLibrary) -> None:
     params = {"m": 1e-6, "c": 1e9}
     py, c = Plant(params), NativePlant(native, params)
     assert py.step(500.0, 1e300) == c.step(500.0, 1e300) == "the result would not be finite"
     assert native_view(c) == python_view(py)
+
+
+# --- the deviations -------------------------------------------------------------------------------
+
+TWO_PI = 2.0 * math.pi
+
+
+@st.composite
+def base_params(draw: st.DrawFn) -> dict[str, float]:
+    f_c = draw(st.floats(20.0, 150.0))
+    return {"m": draw(st.floats(50.0, 300.0)), "f_c": f_c,
+            "f_s": f_c * draw(st.floats(1.0, 1.6)), "c": draw(st.floats(0.0, 900.0))}
+
+
+def stribeck(draw: st.DrawFn) -> dict[str, float]:
+    return {"v_s": draw(st.floats(1e-4, 1e-2)),
+            "delta_s": draw(st.one_of(st.just(1.0), st.just(2.0), st.floats(1.0, 4.0)))}
+
+
+def lugre(draw: st.DrawFn, m: float) -> dict[str, float]:
+    # Stiff bristles cost the model layer many steps: at most a 2 kHz pre-sliding mode here.
+    sigma_0 = m * (TWO_PI * draw(st.floats(50.0, 2000.0))) ** 2
+    return {"sigma_0": sigma_0, "sigma_1": draw(st.floats(0.0, 2.0)) * math.sqrt(sigma_0 * m)}
+
+
+def ripple(draw: st.DrawFn) -> dict[str, float]:
+    return {"ripple": draw(st.floats(0.01, 0.5)), "ripple_period": draw(st.floats(1e-4, 1e-2)),
+            "ripple_phase": draw(st.floats(-TWO_PI, TWO_PI))}
+
+
+def stiction(draw: st.DrawFn, params: dict[str, float]) -> dict[str, float]:
+    spread = draw(st.floats(0.01, 0.3))
+    # The lowest breakaway force f_s*(1 - spread) stays >= f_c.
+    f_s = max(params["f_s"], params["f_c"] / (1.0 - spread))
+    while f_s * (1.0 - spread) < params["f_c"]:
+        f_s = math.nextafter(f_s, math.inf)
+    return {"f_s_spread": spread, "f_s": f_s, "seed": draw(st.integers(0, 2**31 - 1))}
+
+
+def noise(draw: st.DrawFn) -> dict[str, float]:
+    return {"noise_std": draw(st.floats(1e-9, 1e-5)), "seed": draw(st.integers(0, 2**31 - 1)),
+            "x_resolution": draw(st.sampled_from((0.0, 1e-9, 1e-6)))}
+
+
+def lag(draw: st.DrawFn) -> dict[str, float]:
+    return {"tau_u": draw(st.floats(1e-4, 0.05))}
+
+
+def flexible(draw: st.DrawFn, m: float) -> dict[str, float]:
+    m_d = draw(st.floats(5.0, 200.0))
+    mode = draw(st.floats(5.0, 300.0))  # Hz, with the table free
+    return {"m_d": m_d, "k_t": (TWO_PI * mode) ** 2 / (1.0 / m + 1.0 / m_d),
+            "c_t": draw(st.floats(0.0, 1000.0))}
+
+
+#: Deviation -> how its parameters are drawn (on top of drawn m, f_c, f_s, c).
+DEVIATIONS = ("stribeck", "lugre", "ripple", "stiction", "noise", "lag", "flexible",
+              "all_stick_slip", "all_lugre")
+
+
+@st.composite
+def deviation_params(draw: st.DrawFn, case: str) -> dict[str, float]:
+    p = draw(base_params())
+    if case in ("stribeck", "all_stick_slip", "all_lugre"):
+        p.update(stribeck(draw))
+    if case in ("lugre", "all_lugre"):
+        p.update(lugre(draw, p["m"]))
+    if case in ("ripple", "all_stick_slip", "all_lugre"):
+        p.update(ripple(draw))
+    if case in ("stiction", "all_stick_slip"):
+        p.update(stiction(draw, p))
+    if case in ("noise", "all_stick_slip", "all_lugre"):
+        p.update(noise(draw))
+    if case in ("lag", "all_stick_slip", "all_lugre"):
+        p.update(lag(draw))
+    if case in ("flexible", "all_stick_slip", "all_lugre"):
+        p.update(flexible(draw, p["m"]))
+    return p
+
+
+#: A force held over 1 to 4 steps: a pulse beyond breakaway, a rest, or a force below it.
+held_forces = st.tuples(
+    st.one_of(st.floats(-400.0, 400.0), st.just(0.0), st.floats(-140.0, 140.0)),
+    st.one_of(st.just(0.01), st.floats(1e-4, 0.03)),
+    st.integers(1, 4))
+
+
+@pytest.mark.parametrize("case", DEVIATIONS)
+def test_deviation_is_the_model_layer_bit_for_bit(native: NativeLibrary, case: str) -> None:
+    @settings(SETTINGS, max_examples=12)
+    @given(params=deviation_params(case), held=st.lists(held_forces, min_size=1, max_size=12),
+           copy_at=st.integers(0, 30))
+    def check(params: dict[str, float], held: list[tuple[float, float, int]],
+              copy_at: int) -> None:
+        assert not plant_problems(params), plant_problems(params)
+        plant = Plant(params)
+        assert not plant.is_eq1
+        steps = [(u, h) for u, h, n in held for _ in range(n)]
+        run_both(native, params, steps, copy_at)
+
+    check()
+
+
+#: Each deviation at the values of scenarios/realism.toml (tests/unit/test_plant_deviations.py),
+#: and all together.
+REALISM = {
+    "stribeck": {"v_s": 1e-3},
+    "stribeck_delta1": {"v_s": 2e-3, "delta_s": 1.0},
+    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
+    "lugre_light": {"sigma_0": 6.5e6, "sigma_1": 1e4, "v_s": 1e-3, "ripple": 0.1},
+    "ripple": {"ripple": 0.1, "ripple_period": 1e-3, "ripple_phase": 0.3},
+    "stiction": {"f_s_spread": 0.1, "seed": 3},
+    "noise": {"noise_std": 2e-7, "seed": 5, "x_resolution": 1e-7},
+    "lag": {"tau_u": 2e-3},
+    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
+    "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
+            "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "noise_std": 1e-7},
+}
+
+
+def realism_forces(seed: int, n: int) -> list[float]:
+    """Zero-order-hold forces (N): pulses above f_s, rests, forces below breakaway."""
+    rng = random.Random(seed)
+    out: list[float] = []
+    while len(out) < n:
+        kind = rng.random()
+        if kind < 0.3:
+            out += [rng.choice((-1.0, 1.0)) * rng.uniform(140.0, 300.0)] * rng.randint(1, 4)
+        elif kind < 0.65:
+            out += [0.0] * rng.randint(1, 8)
+        else:
+            out += [rng.uniform(-130.0, 130.0)] * rng.randint(1, 5)
+    return out[:n]
+
+
+@pytest.mark.parametrize("case", sorted(REALISM))
+def test_realism_run_is_the_model_layer_bit_for_bit(native: NativeLibrary, case: str) -> None:
+    """A long run per deviation that sticks, breaks away and slides many times."""
+    params = REALISM[case]
+    n = 150
+    steps = [(u, 0.01) for u in realism_forces(len(case), n)]
+    run_both(native, params, steps, n // 2)
+    plant = NativePlant(native, params)
+    stuck = moved = 0
+    for u, h in steps:
+        assert plant.step(u, h) is None
+        stuck += plant.state.v == 0.0
+        moved += plant.state.v != 0.0
+    # The run exercises both regimes (with LuGre the mass creeps instead of sticking).
+    assert moved > 10 and (stuck > 10 or "sigma_0" in params), (stuck, moved)
+    if "f_s_spread" in params:
+        assert plant.state.stick_draws > 5
+    if "noise_std" in params:
+        assert plant.state.noise_draws == n + 1
+
+
+# --- the rules between parameters -----------------------------------------------------------------
+
+
+def edges(var: Any) -> st.SearchStrategy[float]:
+    """A parameter's value at or next to the ends of its range, its default or within."""
+    if var.type == "Integer":
+        return st.sampled_from((var.min, var.max, var.default)).map(int)
+    lo, hi = var.min, var.max
+    values = [var.default, lo, math.nextafter(lo, math.inf), math.nextafter(hi, -math.inf),
+              0.5 * (lo + hi), lo + 1e-3 * (hi - lo)]
+    if not var.max_open:
+        values.append(hi)
+    if var.min_open:
+        values.remove(lo)
+    return st.one_of(st.sampled_from(values), st.floats(lo, hi, exclude_max=var.max_open))
+
+
+def near(value: float, draw: st.DrawFn) -> float:
+    """``value`` or a float next to it."""
+    return draw(st.sampled_from((value, math.nextafter(value, math.inf),
+                                 math.nextafter(value, -math.inf))))
+
+
+@st.composite
+def parameter_sets(draw: st.DrawFn) -> dict[str, float]:
+    """Parameters each valid on its own, often on the boundary of a rule between them."""
+    # Each parameter at its default half of the time, so that every rule is reached.
+    p = {var.name: draw(st.one_of(st.just(var.default), edges(var))) for var in PLANT_PARAMETERS}
+    rule = draw(st.sampled_from(("none", "f_s", "spread", "presliding", "flexible")))
+    if rule != "f_s" and draw(st.booleans()):
+        p["f_s"] = max(p["f_s"], p["f_c"])
+    if rule == "f_s":
+        p["f_s"] = near(p["f_c"], draw)
+    elif rule == "spread" and p["f_s_spread"] > 0.0:
+        p["f_c"] = near(p["f_s"] * (1.0 - p["f_s_spread"]), draw)
+    elif rule == "presliding":
+        p["sigma_0"] = near(p["m"] * (2.0 * math.pi * 1e4) ** 2, draw)
+    elif rule == "flexible" and p["m_d"] > 0.0:
+        p["k_t"] = near((2.0 * math.pi * 1e4) ** 2 / (1.0 / p["m"] + 1.0 / p["m_d"]), draw)
+    by_name = {var.name: var for var in PLANT_PARAMETERS}
+    return {name: value for name, value in p.items() if by_name[name].check(value) is None}
+
+
+@settings(SETTINGS, max_examples=250)
+@given(values=parameter_sets())
+def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary,
+                                                      values: dict[str, float]) -> None:
+    full = {**PLANT_DEFAULTS, **values}
+    found = plant_problems(full)
+    assert native.check(full) == (found[0][1] if found else None)
+
+
+@pytest.mark.parametrize("values", [
+    {"f_c": 140.0},
+    {"f_s_spread": 0.5},
+    {"sigma_0": 1e6, "f_c": 0.0, "f_s": 0.0},
+    {"sigma_0": 1e6, "f_s_spread": 0.1, "f_c": 50.0},
+    {"m_d": 10.0},
+    {"sigma_0": 1e12, "m": 1.0},
+    {"m_d": 1e-3, "k_t": 1e12},
+])
+def test_each_rule_is_refused_with_the_model_layers_words(native: NativeLibrary,
+                                                          values: dict[str, float]) -> None:
+    found = plant_problems({**PLANT_DEFAULTS, **values})
+    assert found
+    assert native.check(values) == found[0][1]
+
+
+@pytest.mark.parametrize("case", sorted(REALISM))
+def test_tiny_steps_are_refused_or_taken_as_the_model_layer_does(native: NativeLibrary,
+                                                                 case: str) -> None:
+    """Step sizes down to the smallest double: the integrator's step of h/8 divides by 0."""
+    steps = [(200.0, 0.01), (200.0, 5e-324), (200.0, 1e-310), (0.0, 1e-300), (150.0, 1e-12),
+             (200.0, 0.003), (-300.0, 5e-324), (0.0, 0.01), (100.0, 1e-320), (300.0, 2e-323),
+             (300.0, 0.01)]
+    run_both(native, REALISM[case], steps, 3)
+    py = Plant(REALISM[case])
+    reasons = {py.step(u, h) for u, h in steps}
+    assert reasons == ({None} if py.exact else
+                       {None, "float division by zero",
+                        "the integrator's step size fell below 0.0 s"})
+
+
+@settings(SETTINGS, max_examples=300)
+@given(f_s=st.one_of(
+    st.floats(0.0, 1e9, exclude_max=True),
+    st.sampled_from((2.0**-24, 5e-324, 2.2250738585072014e-308, 1e-5, 0.0001, 1e-4 * 3,
+                     123456789.0, 0.1, 1e-7, 9.999999999999999e-05, 1e8 + 0.5,
+                     999999999.9999999))))
+def test_values_in_messages_are_written_as_pythons_repr(native: NativeLibrary,
+                                                        f_s: float) -> None:
+    """The rule f_s >= f_c refused for f_s below f_c = 1e9 N: the message holds repr(f_s)."""
+    assert native.check({"f_s": f_s, "f_c": 1e9}) == (
+        f"f_s = {f_s!r} N: must be >= f_c = 1000000000.0 N")
