@@ -251,6 +251,10 @@ int model_state_check(const void *data, int started, char *msg, size_t len) {
         snprintf(msg, len, "its parameters are invalid: %s", found.first);
         return 1;
     }
+    if (fp_state_check(&d->s, found.first, sizeof found.first) != 0) {
+        snprintf(msg, len, "the state does not fit: %s", found.first);
+        return 1;
+    }
     fp_outputs(&d->s, &d->p, &y);
     if (!isfinite(y.x) || !isfinite(y.v)) {
         snprintf(msg, len, "its position or velocity is not finite");

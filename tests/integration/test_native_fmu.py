@@ -267,6 +267,16 @@ def test_each_refusal_is_an_error_or_a_discard_never_ok(friction_plant_unzipped:
         "garbage": bytes(len(data)),
         "another FMU's": data[:guid_at + 1] + b"0" + data[guid_at + 2:],
     }
+    # the model data follows the marker (8 bytes), the GUID (64) and the phase and time (16):
+    # first the parameters (m first), then the plant's state (x first, after 20 doubles and
+    # the Integer seed, padded to 168 bytes)
+    m_at, x_at = 8 + 64 + 16, 8 + 64 + 16 + 168
+    assert struct.unpack_from("<d", data, m_at) == (150.0,)
+    assert struct.unpack_from("<d", data, x_at) == (fmu.outputs()[0],)
+    bad_states["invalid parameter m = -1"] = (data[:m_at] + struct.pack("<d", -1.0)
+                                              + data[m_at + 8:])
+    bad_states["position not finite"] = (data[:x_at] + struct.pack("<d", math.nan)
+                                         + data[x_at + 8:])
     for what, bad in bad_states.items():
         assert refused(lambda bad=bad: fmu.fmu.deSerializeFMUstate(bad)) == FMI2_ERROR, what
     fmu.fmu.terminate()
@@ -281,6 +291,8 @@ def test_each_refusal_is_an_error_or_a_discard_never_ok(friction_plant_unzipped:
                    "150.0" in m for m in errors)
         assert any("input u = nan N is not finite" in m for s, m in fmu.messages
                    if s == FMI2_DISCARD)
+        assert any("its parameters are invalid: parameter m = -1.0 kg" in m for m in errors)
+        assert any("the state does not fit" in m and "nan" in m for m in errors)
     else:
         assert fmu.messages == []
     fmu.close()
