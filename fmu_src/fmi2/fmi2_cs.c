@@ -687,11 +687,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         free(state);
         return fmi2Error;
     }
-    if (*FMUstate != NULL && ((StateHead *)*FMUstate)->magic == STATE_MAGIC) {
-        ((StateHead *)*FMUstate)->magic = 0;
-        free(*FMUstate);
-    }
-    *FMUstate = state;
+    *FMUstate = state; /* a new state: what *FMUstate held on entry is not read */
     return fmi2OK;
 }
 
