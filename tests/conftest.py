@@ -6,7 +6,9 @@
   line, batteries and Dask.
 
 The project's FMUs are built once per session by :func:`papwc.fmubuild.fmus.build_all`
-into a temporary folder (fixture ``fmu_dir``); ``tests/integration/conftest.py`` has
+into a temporary folder (fixture ``fmu_dir``; FrictionPlant is the native FMU, compiled by
+zig for every platform once, and the pythonfmu FrictionPlant is built beside it in
+``fmu_dir/pythonfmu/``); ``tests/integration/conftest.py`` has
 every integration test depend on it, so the FMUs are built before any FMU is loaded
 into this process (a loaded pythonfmu FMU puts its bundled ``pythonfmu`` copy into
 ``sys.modules``, after which building fails).
@@ -23,7 +25,7 @@ from pathlib import Path
 
 import pytest
 
-from papwc.fmubuild.fmus import build_all
+from papwc.fmubuild.fmus import build_all, build_fmu
 
 TESTS_DIR = Path(__file__).resolve().parent
 PROJECT_DIR = TESTS_DIR.parent
@@ -73,13 +75,20 @@ def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """
     out = tmp_path_factory.mktemp("fmus")
     build_all(out)
+    build_fmu("FrictionPlant", out / "pythonfmu", backend="pythonfmu")
     return out
 
 
 @pytest.fixture(scope="session")
 def friction_plant_fmu(fmu_dir: Path) -> Path:
-    """Path of the built FrictionPlant.fmu."""
+    """Path of the built FrictionPlant.fmu (the native one, ``papwc build``'s default)."""
     return fmu_dir / "FrictionPlant.fmu"
+
+
+@pytest.fixture(scope="session")
+def pythonfmu_plant_fmu(fmu_dir: Path) -> Path:
+    """Path of FrictionPlant.fmu built with pythonfmu (``papwc build --backend pythonfmu``)."""
+    return fmu_dir / "pythonfmu" / "FrictionPlant.fmu"
 
 
 @pytest.fixture(scope="session")
@@ -106,6 +115,14 @@ def friction_plant_unzipped(
 ) -> Path:
     """FrictionPlant.fmu extracted once, for tests that create many instances."""
     return _extract(friction_plant_fmu, tmp_path_factory, "plant")
+
+
+@pytest.fixture(scope="session")
+def pythonfmu_plant_unzipped(
+    pythonfmu_plant_fmu: Path, tmp_path_factory: pytest.TempPathFactory
+) -> Path:
+    """The pythonfmu FrictionPlant.fmu extracted once."""
+    return _extract(pythonfmu_plant_fmu, tmp_path_factory, "pyplant")
 
 
 @pytest.fixture(scope="session")

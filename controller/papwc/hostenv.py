@@ -1,10 +1,12 @@
-"""What a non-Python FMI host needs to load the project's FMUs, for this interpreter.
+"""What a non-Python FMI host needs to load the project's pythonfmu FMUs, for this interpreter.
 
-A pythonfmu 0.7.0 FMU embeds the Python interpreter, but its binary does not
+The native FrictionPlant.fmu (``papwc build``'s default) needs nothing. A pythonfmu 0.7.0
+FMU (PulseController.fmu, PapwcTrivial.fmu, FrictionPlant.fmu of ``papwc build --backend
+pythonfmu``) embeds the Python interpreter, but its binary does not
 link libpython: a Python host has the library loaded already; a C or C++ host
 (ecos, fmusim, OMSimulator, the FMI Compliance Checker) must load it first:
 
-- Linux: ``LD_PRELOAD=<libpython3.X.so.1.0>`` of an interpreter 3.8 or newer
+- Linux: ``LD_PRELOAD=<libpython3.X.so.1.0>`` of an interpreter 3.10 or newer
   (without it the host fails with ``undefined symbol: _Py_NoneStruct`` or
   crashes);
 - Windows: the folder of ``python3.dll`` on ``PATH``;

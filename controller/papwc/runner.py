@@ -166,9 +166,33 @@ def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | 
     ``unzip_dir`` is an extracted copy of the FMU to use (a battery worker
     extracts it once).
     """
+    if plant != "physics" and unzip_dir is not None:
+        idle = _IDLE_PLANTS.pop((str(fmu), str(unzip_dir)), None)
+        if idle is not None:  # fmi2Reset at its initialization: as good as a new instance
+            idle.log.clear()
+            idle.replace_start_values(dict(scenario.plant))
+            return idle
     slave = PhysicsSlave() if plant == "physics" else FmuSlave(fmu, unzip_dir=unzip_dir)
     slave.set_start_values(dict(scenario.plant))
     return slave
+
+
+#: Plant instances of this process not in use, by (FMU, extracted copy): a battery worker
+#: (which passes its extracted copy) takes the one of the run before instead of loading the
+#: FMU again, where the FMU can be reset (:attr:`papwc.master.FmuSlave.reusable`).
+_IDLE_PLANTS: dict[tuple[str, str], Slave] = {}
+
+
+def release_plant(slave: Slave, fmu: str | os.PathLike | None,
+                  unzip_dir: str | os.PathLike | None) -> None:
+    """Done with a plant of :func:`make_plant`: keep it for the next run, or close it."""
+    key = (str(fmu), str(unzip_dir))
+    if (unzip_dir is not None and isinstance(slave, FmuSlave) and slave.reusable
+            and key not in _IDLE_PLANTS):
+        slave.__dict__.pop("do_step", None)  # the guard of _guard_steps
+        _IDLE_PLANTS[key] = slave
+        return
+    slave.close()
 
 
 def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
@@ -192,7 +216,7 @@ def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike 
             try:
                 results.append(run_controller(slave, settings, scenario.maneuver, label))
             finally:
-                slave.close()
+                release_plant(slave, fmu, unzip_dir)
             if progress is not None:
                 progress(results[-1])
     return results

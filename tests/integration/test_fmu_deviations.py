@@ -145,15 +145,17 @@ def test_state_get_set_and_serialize_continue_bit_for_bit(case: str, instances) 
     state = a.fmu.getFMUstate()
     serialized = a.fmu.serializeFMUstate(state)
     expected = [a.step(u) for u in u_seq[40:]]
-    # The same instance, back to the saved state.
+    # The same instance, back to the saved state (and its time: step 40).
     a.fmu.setFMUstate(state)
     a.fmu.freeFMUstate(state)
+    a.k = 40
     assert [a.step(u) for u in u_seq[40:]] == expected
     # Another instance, from the serialized state.
     b = instances(params)
     restored = b.fmu.deSerializeFMUstate(serialized)
     b.fmu.setFMUstate(restored)
     b.fmu.freeFMUstate(restored)
+    b.k = 40
     assert [b.step(u) for u in u_seq[40:]] == expected
     assert not [m for m in a.log + b.log if "refused" in m]
 

@@ -1,6 +1,10 @@
 """FrictionPlant.fmu: exactness through the master and fmpy, bad input, refusals, state,
 logging and many instances.
 
+Exactness runs on the native FMU (the default); the refusals, logging and the JSON state
+of the pythonfmu glue on the pythonfmu FrictionPlant (fixture ``pyplant``); the native
+FMU's refusals and states are in test_native_fmu.py.
+
 Force sequences are played into the FMU by the master (``harness.open_loop``: a
 SignalSlave into the plant's ``u``); FMI functions are called directly (through the
 one harness, ``harness.FmuInstance``) only to provoke refusals and to get, set and
@@ -39,6 +43,14 @@ OUTPUTS = ("x", "v", "x_meas", "stuck")
 @pytest.fixture
 def plant(friction_plant_unzipped: Path):
     p = FmuInstance(friction_plant_unzipped, "plant")
+    yield p
+    p.close()
+
+
+@pytest.fixture
+def pyplant(pythonfmu_plant_unzipped: Path):
+    """An instance of the pythonfmu FrictionPlant (``papwc build --backend pythonfmu``)."""
+    p = FmuInstance(pythonfmu_plant_unzipped, "plant")
     yield p
     p.close()
 
@@ -88,27 +100,27 @@ def test_the_harness_as_a_slave_gives_the_same_trajectory(plant: FmuInstance) ->
     assert_no_error_logged(plant)
 
 
-def test_parameters_set_after_initialization_are_refused(plant: FmuInstance) -> None:
-    plant.set_start_values({"x_resolution": 1e-3})
-    execution, rec = open_loop(plant, U_SEQ[:30], T, OUTPUTS, steps=1)
+def test_parameters_set_after_initialization_are_refused(pyplant: FmuInstance) -> None:
+    pyplant.set_start_values({"x_resolution": 1e-3})
+    execution, rec = open_loop(pyplant, U_SEQ[:30], T, OUTPUTS, steps=1)
     for name, value in (("m", 1.0), ("f_c", 0.0), ("x0", 5.0), ("v0", 1.0), ("x_resolution", 0.5)):
-        before = plant.get(name)
-        plant.set(name, value)
-        assert plant.get(name) == before  # the value is kept
+        before = pyplant.get(name)
+        pyplant.set(name, value)
+        assert pyplant.get(name) == before  # the value is kept
         assert (f"parameter {name} cannot be set after initialization: {value!r} refused, "
-                f"it stays {before!r}") in plant.messages[-1].text
-        assert plant.messages[-1].status == FMI2_ERROR
+                f"it stays {before!r}") in pyplant.messages[-1].text
+        assert pyplant.messages[-1].status == FMI2_ERROR
     execution.step(29)
     x_ref, v_ref = simulate(U_SEQ[:30], T, **PARAMS)[-1]
-    assert plant.get_many("x", "v", "x_meas") == [x_ref, v_ref, quantize(x_ref, 1e-3)]
+    assert pyplant.get_many("x", "v", "x_meas") == [x_ref, v_ref, quantize(x_ref, 1e-3)]
     assert rec.states() == simulate(U_SEQ[:30], T, **PARAMS)
 
 
-def test_an_output_cannot_be_set(plant: FmuInstance) -> None:
-    plant.init()
-    plant.set("x", 1.0)
-    assert plant.get("x") == 0.0
-    assert "x is an output and cannot be set: 1.0 refused" in plant.messages[-1].text
+def test_an_output_cannot_be_set(pyplant: FmuInstance) -> None:
+    pyplant.init()
+    pyplant.set("x", 1.0)
+    assert pyplant.get("x") == 0.0
+    assert "x is an output and cannot be set: 1.0 refused" in pyplant.messages[-1].text
 
 
 def test_variable_step_sizes_are_exact(plant: FmuInstance) -> None:
@@ -243,48 +255,48 @@ def test_bad_step_size_is_discarded(plant: FmuInstance, h: float) -> None:
         ("v0", math.nan, "v0 = nan m/s: must be a finite number"),
     ],
 )
-def test_invalid_parameter_is_refused(plant: FmuInstance, name: str, value: float,
+def test_invalid_parameter_is_refused(pyplant: FmuInstance, name: str, value: float,
                                       allowed: str) -> None:
     """Refused when initialization ends: logged with status Error, then doStep -> Discard.
 
     exitInitializationMode itself returns OK: with pythonfmu 0.7.0 the only other
     outcome is fmi2Fatal, which frees the instance and aborts a libcosim host.
     """
-    plant.init(**{name: value})
-    errors = [m for m in plant.messages if m.status == FMI2_ERROR]
+    pyplant.init(**{name: value})
+    errors = [m for m in pyplant.messages if m.status == FMI2_ERROR]
     assert len(errors) == 1
     status, category, message = errors[0]
     assert category == "logStatusError"
     assert f"parameter {name} = {value!r}" in message and allowed in message
     assert message == (f"plant: parameter {allowed}; initialization refused, doStep will "
                        "return Discard")
-    plant.set("u", 300.0)
+    pyplant.set("u", 300.0)
     with pytest.raises(FMICallException) as info:
-        plant.fmu.doStep(0.0, T)
+        pyplant.fmu.doStep(0.0, T)
     assert info.value.status == FMI2_DISCARD
-    assert f"parameter {name}" in plant.messages[-1].text
-    assert f"invalid parameters: parameter {allowed}" in plant.messages[-1].text
+    assert f"parameter {name}" in pyplant.messages[-1].text
+    assert f"invalid parameters: parameter {allowed}" in pyplant.messages[-1].text
 
 
 def test_steps_before_initialization_and_after_terminate_are_discarded(
-    plant: FmuInstance,
+    pyplant: FmuInstance,
 ) -> None:
     with pytest.raises(FMICallException) as info:
-        plant.fmu.doStep(0.0, T)
+        pyplant.fmu.doStep(0.0, T)
     assert info.value.status == FMI2_DISCARD
-    assert "initialization has not ended" in plant.messages[-1].text
-    plant.fmu.setupExperiment(startTime=0.0)
-    plant.fmu.enterInitializationMode()
-    plant.fmu.exitInitializationMode()
-    plant.fmu.doStep(0.0, T)
-    plant.fmu.terminate()
+    assert "initialization has not ended" in pyplant.messages[-1].text
+    pyplant.fmu.setupExperiment(startTime=0.0)
+    pyplant.fmu.enterInitializationMode()
+    pyplant.fmu.exitInitializationMode()
+    pyplant.fmu.doStep(0.0, T)
+    pyplant.fmu.terminate()
     with pytest.raises(FMICallException):
-        plant.fmu.doStep(T, T)
-    assert "the simulation was terminated (fmi2Terminate)" in plant.messages[-1].text
+        pyplant.fmu.doStep(T, T)
+    assert "the simulation was terminated (fmi2Terminate)" in pyplant.messages[-1].text
 
 
-def test_messages_are_dropped_when_logging_is_off(friction_plant_unzipped: Path) -> None:
-    quiet = FmuInstance(friction_plant_unzipped, "quiet", logging=False)
+def test_messages_are_dropped_when_logging_is_off(pythonfmu_plant_unzipped: Path) -> None:
+    quiet = FmuInstance(pythonfmu_plant_unzipped, "quiet", logging=False)
     try:
         quiet.init(m=-1.0)
         assert quiet.messages == []
@@ -297,29 +309,29 @@ def test_messages_are_dropped_when_logging_is_off(friction_plant_unzipped: Path)
 
 
 # --- state --------------------------------------------------------------------------------------
-def test_get_set_fmu_state_restores_exactly(plant: FmuInstance) -> None:
-    plant.set_start_values(PARAMS)
-    execution, rec = open_loop(plant, U_SEQ[:40], T, OUTPUTS, steps=3)
+def test_get_set_fmu_state_restores_exactly(pyplant: FmuInstance) -> None:
+    pyplant.set_start_values(PARAMS)
+    execution, rec = open_loop(pyplant, U_SEQ[:40], T, OUTPUTS, steps=3)
     saved_time = execution.time()
-    state = plant.fmu.getFMUstate()
-    snapshot = plant.fmu.serializeFMUstate(state)
-    before = (plant.get_many("x", "v", "x_meas"), plant.get("stuck"))
+    state = pyplant.fmu.getFMUstate()
+    snapshot = pyplant.fmu.serializeFMUstate(state)
+    before = (pyplant.get_many("x", "v", "x_meas"), pyplant.get("stuck"))
     execution.step(37)
     first = rec.rows[3:]
     assert len(first) == 38
     assert rec.states() == simulate(U_SEQ[:40], T, **PARAMS)
-    plant.fmu.setFMUstate(state)
-    assert (plant.get_many("x", "v", "x_meas"), plant.get("stuck")) == before
-    assert plant.fmu.serializeFMUstate(plant.fmu.getFMUstate()) == snapshot
+    pyplant.fmu.setFMUstate(state)
+    assert (pyplant.get_many("x", "v", "x_meas"), pyplant.get("stuck")) == before
+    assert pyplant.fmu.serializeFMUstate(pyplant.fmu.getFMUstate()) == snapshot
     data = json.loads(snapshot)
     assert data["papwc_fmu_state"] == "FrictionPlant"
     assert data["fields"]["time"] == saved_time
     # the master continues from the restored state: the same 37 samples
-    plant.resume_from(state)
-    _, again = open_loop(plant, U_SEQ[3:40], T, OUTPUTS, start_time=saved_time)
+    pyplant.resume_from(state)
+    _, again = open_loop(pyplant, U_SEQ[3:40], T, OUTPUTS, start_time=saved_time)
     assert again.rows == first
-    plant.fmu.freeFMUstate(state)
-    assert_no_error_logged(plant)
+    pyplant.fmu.freeFMUstate(state)
+    assert_no_error_logged(pyplant)
 
 
 def test_serialized_state_restores_exactly_in_another_instance(
@@ -361,26 +373,26 @@ def test_serialized_state_restores_exactly_in_another_instance(
     ],
 )
 def test_a_state_of_another_kind_is_refused_and_the_instance_keeps_working(
-    plant: FmuInstance, data: bytes, reason: str
+    pyplant: FmuInstance, data: bytes, reason: str
 ) -> None:
-    plant.set_start_values(PARAMS)
-    execution, rec = open_loop(plant, U_SEQ[:20], T, OUTPUTS, steps=5)
-    before = plant.get_many("x", "v")
-    plant.fmu.setFMUstate(plant.fmu.deSerializeFMUstate(data))
-    errors = plant.logged(FMI2_ERROR)
+    pyplant.set_start_values(PARAMS)
+    execution, rec = open_loop(pyplant, U_SEQ[:20], T, OUTPUTS, steps=5)
+    before = pyplant.get_many("x", "v")
+    pyplant.fmu.setFMUstate(pyplant.fmu.deSerializeFMUstate(data))
+    errors = pyplant.logged(FMI2_ERROR)
     assert len(errors) == 1 and "setFMUstate refused" in errors[0] and reason in errors[0]
-    assert plant.get_many("x", "v") == before
+    assert pyplant.get_many("x", "v") == before
     execution.step(15)
     assert rec.states() == simulate(U_SEQ[:20], T, **PARAMS)
 
 
-def test_a_state_with_a_wrong_field_type_is_refused(plant: FmuInstance) -> None:
-    plant.init()
-    state = json.loads(plant.fmu.serializeFMUstate(plant.fmu.getFMUstate()))
+def test_a_state_with_a_wrong_field_type_is_refused(pyplant: FmuInstance) -> None:
+    pyplant.init()
+    state = json.loads(pyplant.fmu.serializeFMUstate(pyplant.fmu.getFMUstate()))
     state["fields"]["x"] = "far"
-    plant.fmu.setFMUstate(plant.fmu.deSerializeFMUstate(json.dumps(state).encode()))
-    assert "field x = 'far' is not a Real" in plant.logged(FMI2_ERROR)[-1]
-    assert plant.get("x") == 0.0
+    pyplant.fmu.setFMUstate(pyplant.fmu.deSerializeFMUstate(json.dumps(state).encode()))
+    assert "field x = 'far' is not a Real" in pyplant.logged(FMI2_ERROR)[-1]
+    assert pyplant.get("x") == 0.0
 
 
 # --- many instances -----------------------------------------------------------------------------

@@ -1,10 +1,12 @@
 """FMU states, refused calls and the master's logger, through fmpy (issue 13, groups 7 and 10).
 
-Both FMUs: a state that does not parse or does not fit is refused before
-anything changes and the instance keeps stepping correctly; parameters and
-outputs set after initialization, inputs and steps after fmi2Terminate are
-refused; the master (FmuSlave) frees every state it takes, routes each message
-to the instance that logged it and takes any logger argument, NULL included.
+The pythonfmu FMUs (PulseController and the pythonfmu FrictionPlant, ``papwc build
+--backend pythonfmu``; the native FrictionPlant's refusals are in test_native_fmu.py): a
+state that does not parse or does not fit is refused before anything changes and the
+instance keeps stepping correctly; parameters and outputs set after initialization,
+inputs and steps after fmi2Terminate are refused; the master (FmuSlave) frees every state
+it takes, routes each message to the instance that logged it and takes any logger
+argument, NULL included.
 """
 
 from __future__ import annotations
@@ -107,8 +109,8 @@ class Instance:
 
 
 @pytest.fixture
-def instances(friction_plant_fmu: Path, pulse_controller_fmu: Path):
-    plant = Instance(friction_plant_fmu, "plant")
+def instances(pythonfmu_plant_fmu: Path, pulse_controller_fmu: Path):
+    plant = Instance(pythonfmu_plant_fmu, "plant")
     controller = Instance(pulse_controller_fmu, "controller")
     yield plant, controller
     plant.close()
@@ -188,8 +190,8 @@ def test_parameters_and_outputs_set_after_initialization_are_refused(
     assert fmu.state_bytes() == before
 
 
-def test_calls_after_terminate_are_refused(friction_plant_fmu: Path) -> None:
-    plant = Instance(friction_plant_fmu, "plant")
+def test_calls_after_terminate_are_refused(pythonfmu_plant_fmu: Path) -> None:
+    plant = Instance(pythonfmu_plant_fmu, "plant")
     plant.set("u", 300.0)
     plant.do_step()
     x = plant.get("x")
@@ -224,8 +226,8 @@ def test_the_master_frees_every_state_it_takes(friction_plant_fmu: Path) -> None
     assert len(taken) == 3 and [id(s) for s in freed] == [id(s) for s in taken]
 
 
-def test_the_master_logger_takes_every_argument(friction_plant_fmu: Path) -> None:
-    slave = FmuSlave(friction_plant_fmu, name="p")
+def test_the_master_logger_takes_every_argument(pythonfmu_plant_fmu: Path) -> None:
+    slave = FmuSlave(pythonfmu_plant_fmu, name="p")
     env = slave._environment
     slave._logger(env, None, 3, None, None)
     slave._logger(env, b"p", 99, b"cat", b"\xff\xfe bytes")

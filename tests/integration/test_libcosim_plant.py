@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -84,10 +87,23 @@ def test_libcosim_stops_with_an_error_on_a_non_finite_force(friction_plant_fmu: 
 
 
 def test_libcosim_stops_with_an_error_on_an_invalid_parameter(friction_plant_fmu: Path) -> None:
-    """An invalid parameter makes the first step fail; the host process survives."""
-    md = read_model_description(str(friction_plant_fmu))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    execution = CosimExecution.from_step_size(T_NS)
-    index = execution.add_local_slave(CosimLocalSlave(str(friction_plant_fmu), "plant"))
-    assert execution.real_initial_value(index, vr["f_s"], 50.0)
-    assert not execution.step()
+    """An invalid parameter is refused at fmi2ExitInitializationMode with fmi2Error and a
+    message naming it. libcosim 0.x throws that error out of its worker thread, which ends
+    the host process (the pythonfmu plant returned OK there and failed the first step), so
+    this runs in a child process: it ends with libcosim's "Model error" naming the
+    parameter, the value and the rule."""
+    code = textwrap.dedent(f"""
+        from libcosimpy.CosimExecution import CosimExecution
+        from libcosimpy.CosimLogging import CosimLogLevel, log_output_level
+        from libcosimpy.CosimSlave import CosimLocalSlave
+        log_output_level(CosimLogLevel.WARNING)
+        execution = CosimExecution.from_step_size({T_NS})
+        index = execution.add_local_slave(CosimLocalSlave({str(friction_plant_fmu)!r}, "plant"))
+        assert execution.real_initial_value(index, 2, 50.0)  # f_s
+        print("stepped" if execution.step() else "step failed", flush=True)
+    """)
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=300, check=False)
+    assert "stepped" not in done.stdout
+    assert "parameter f_s = 50.0 N: must be >= f_c = 100.0 N" in done.stderr, done.stderr
+    assert done.returncode != 0 or "step failed" in done.stdout

@@ -12,8 +12,10 @@ EPILOG = """\
 examples:
   papwc bench --quick              # builds the FMUs into a temporary folder, fewer iterations
   papwc bench                      # the full measurement (about 3 min)
-  papwc bench --fmu-dir build      # use FMUs already written by `papwc build`
-  papwc bench --realism            # also the wall time of scenarios/realism.toml (~1-2 min)
+  papwc bench --fmu-dir build      # use FMUs already written by `papwc build` (and
+                                   # build/pythonfmu/FrictionPlant.fmu, built if missing)
+  papwc bench --realism            # also scenarios/realism.toml with the native and the
+                                   # pythonfmu plant (a few minutes)
 """
 
 
@@ -39,16 +41,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Build the FMUs unless given, run every bench section, print the figures; return 0."""
     from papwc.bench import BenchContext, load_sections, run_sections
-    from papwc.fmubuild.fmus import build_all
+    from papwc.bench.native import PYTHONFMU_PLANT
+    from papwc.fmubuild.fmus import build_all, build_fmu
 
     sections = load_sections()
     options = frozenset(["realism"] if args.realism else [])
     if args.fmu_dir is not None:
+        # the pythonfmu plant beside the native one, built before any FMU is loaded
+        pythonfmu_plant = args.fmu_dir / PYTHONFMU_PLANT
+        if not pythonfmu_plant.is_file():
+            build_fmu("FrictionPlant", pythonfmu_plant.parent, backend="pythonfmu")
         run_sections(BenchContext(fmu_dir=args.fmu_dir, quick=args.quick, options=options),
                      sections)
         return 0
     with tempfile.TemporaryDirectory(prefix="papwcbench") as tmp:
         build_all(Path(tmp))
+        build_fmu("FrictionPlant", Path(tmp) / Path(PYTHONFMU_PLANT).parent, backend="pythonfmu")
         run_sections(BenchContext(fmu_dir=Path(tmp), quick=args.quick, options=options),
                      sections)
     return 0

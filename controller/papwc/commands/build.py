@@ -18,6 +18,8 @@ examples:
                                    # build/PulseController.fmu, build/PapwcTrivial.fmu,
                                    # build/ClosedLoop.ssp
   papwc build --out /tmp/fmus      # writes into /tmp/fmus
+  papwc build --backend pythonfmu  # FrictionPlant.fmu made with pythonfmu (runs in the
+                                   # host's Python 3.10+) instead of the native one
   papwc build --scenario scenarios/long_move.toml --controller 2
                                    # ClosedLoop.ssp for another scenario's 2nd controller
   fmpy simulate build/FrictionPlant.fmu --output-interval 0.01 --stop-time 1 \\
@@ -27,6 +29,17 @@ examples:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``papwc build`` to its subparser."""
+    from papwc.fmubuild.fmus import BACKENDS, DEFAULT_BACKEND
+
+    parser.add_argument(
+        "--backend",
+        choices=BACKENDS,
+        default=DEFAULT_BACKEND,
+        help="how FrictionPlant.fmu is made: 'native' (C, compiled by zig for win64, "
+        "linux64 and darwin64; no Python in the host) or 'pythonfmu' (the model layer in "
+        "the host's Python 3.10 or newer); default: %(default)s. PulseController.fmu and "
+        "PapwcTrivial.fmu are pythonfmu FMUs either way",
+    )
     parser.add_argument(
         "--out",
         type=Path,
@@ -60,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
 
     out = default_out(args.out, "build")
     _check_controller(args)  # 1-based, checked before anything is built
-    for path in build_all(out):
+    for path in build_all(out, backend=args.backend):
         print(path)
     scenario = args.scenario if args.scenario is not None else scenario_file("paper.toml")
     index = None if args.controller is None else args.controller - 1

@@ -12,6 +12,11 @@ FrictionPlant     ``papwc_friction_plant`` ``model`` (physics, variables), ``fmi
 PulseController   ``papwc_pulse_controller`` ``model``, ``controllers``, ``fmi``
 PapwcTrivial      (none)                   (none: the floor ``papwc bench`` measures)
 ================= ======================== ==========================================
+
+FrictionPlant is also written in C (``fmu_src/FrictionPlant/*.c`` with the FMI glue of
+``fmu_src/fmi2/``), built by :mod:`.native_build` for win64, linux64 and darwin64: that
+native FMU is the default (:data:`DEFAULT_BACKEND`); ``backend="pythonfmu"`` builds the
+pythonfmu one. PulseController and PapwcTrivial are pythonfmu FMUs whatever the backend.
 """
 
 from __future__ import annotations
@@ -29,6 +34,8 @@ from papwc.model.variables import Variable
 from papwc.resources import checkout_root, fmu_src_dir
 
 __all__ = [
+    "BACKENDS",
+    "DEFAULT_BACKEND",
     "FMUS",
     "FmuRecipe",
     "build_all",
@@ -39,6 +46,11 @@ __all__ = [
     "is_current",
     "recipe",
 ]
+
+#: How FrictionPlant can be built: in C ("native", the default) or with pythonfmu.
+BACKENDS = ("native", "pythonfmu")
+#: The backend of ``papwc build``, ``run``, ``reproduce``, ``battery`` and ClosedLoop.ssp.
+DEFAULT_BACKEND = "native"
 
 #: The folder of the papwc package (its subpackages are bundled).
 PACKAGE_DIR = Path(papwc.__file__).resolve().parent
@@ -60,6 +72,8 @@ class FmuRecipe:
         Subpackages of papwc copied into the bundle.
     options : dict
         CoSimulation capability flags.
+    native : bool
+        Whether the model is also written in C (``fmu_src/<name>/*.c``).
     """
 
     name: str
@@ -67,6 +81,7 @@ class FmuRecipe:
     package: str = ""
     subpackages: tuple[str, ...] = ()
     options: dict[str, bool] = field(default_factory=lambda: dict(STATE_OPTIONS))
+    native: bool = False
 
     @property
     def folder(self) -> Path:
@@ -94,10 +109,40 @@ class FmuRecipe:
         return FmuSource(self.script, self.variables, self.package, self.bundle,
                          self.documentation, options=self.options)
 
+    def native_source(self):
+        """What the native FMU is built from (:class:`.native_build.NativeSource`)."""
+        from papwc.fmubuild.native_build import NativeSource
+
+        reference = self.folder / f"{self.name}_ref.csv"
+        return NativeSource(
+            self.name, self.folder, fmu_src_dir() / "fmi2", self.variables,
+            _DESCRIPTIONS.get(self.name, self.name), self.documentation,
+            reference if reference.is_file() else None, sections=("Equations",),
+        )
+
+    def uses_native(self, backend: str) -> bool:
+        """Whether ``backend`` builds this FMU in C."""
+        if backend not in BACKENDS:
+            raise BuildError(f"backend {backend!r}: must be one of " + ", ".join(BACKENDS))
+        return self.native and backend == "native"
+
+
+#: One line on each native model (its model description's ``description``).
+_DESCRIPTIONS = {
+    "FrictionPlant": (
+        "Mass with Coulomb, stiction and viscous friction (m*dv/dt = u - f_c*sgn(v) - c*v, "
+        "stuck while v = 0 and |u| <= f_s), advanced exactly with the force held constant "
+        "over each communication step; optional deviations of a real machine (Stribeck "
+        "curve, LuGre pre-sliding, friction ripple, random stiction, actuator lag, flexible "
+        "drive, encoder noise), integrated with error control where no closed form exists"
+    ),
+}
+
 
 #: The FMUs ``papwc build`` writes, in order.
 FMUS: tuple[FmuRecipe, ...] = (
-    FmuRecipe("FrictionPlant", PLANT_VARIABLES, "papwc_friction_plant", ("model", "fmi")),
+    FmuRecipe("FrictionPlant", PLANT_VARIABLES, "papwc_friction_plant", ("model", "fmi"),
+              native=True),
     FmuRecipe(
         "PulseController",
         PULSE_CONTROLLER_VARIABLES,
@@ -124,40 +169,51 @@ def recipe(name: str) -> FmuRecipe:
     raise BuildError(f"no FMU named {name!r}; FMUs: " + ", ".join(r.name for r in FMUS))
 
 
-def fmu_digest(name: str) -> str:
+def fmu_digest(name: str, backend: str = DEFAULT_BACKEND) -> str:
     """Digest of the sources FMU ``name`` would be built from now (its GUID is made of it)."""
-    return recipe(name).source().digest()
+    r = recipe(name)
+    if r.uses_native(backend):
+        return r.native_source().digest()
+    return r.source().digest()
 
 
-def build_fmu(name: str, out_dir: Path) -> Path:
-    """Build FMU ``name`` into ``out_dir``; return the path written."""
-    return build_pythonfmu(recipe(name).source(), out_dir)
+def build_fmu(name: str, out_dir: Path, backend: str = DEFAULT_BACKEND) -> Path:
+    """Build FMU ``name`` into ``out_dir`` with ``backend``; return the path written."""
+    r = recipe(name)
+    if r.uses_native(backend):
+        from papwc.fmubuild.native_build import build_native
+
+        return build_native(r.native_source(), out_dir)
+    return build_pythonfmu(r.source(), out_dir)
 
 
-def is_current(path: Path, name: str) -> bool:
-    """Whether ``path`` is FMU ``name`` built from the sources as they are now."""
+def is_current(path: Path, name: str, backend: str = DEFAULT_BACKEND) -> bool:
+    """Whether ``path`` is FMU ``name`` built with ``backend`` from the sources as they are."""
     try:
         found = read_model_description(path).get("guid")
     except BuildError:
         return False
-    return found == guid(fmu_digest(name))
+    return found == guid(fmu_digest(name, backend))
 
 
-def current_fmu(name: str, out_dir: Path) -> Path:
+def current_fmu(name: str, out_dir: Path, backend: str = DEFAULT_BACKEND) -> Path:
     """FMU ``name`` built from the current sources, building it only if needed.
 
     The checkout's ``build/<name>.fmu`` (what ``papwc build`` wrote) if it is
     current, else ``out_dir/<name>.fmu``, built there if missing or stale.
     """
     root = checkout_root()
-    if root is not None and is_current(root / "build" / f"{name}.fmu", name):
+    if root is not None and is_current(root / "build" / f"{name}.fmu", name, backend):
         return root / "build" / f"{name}.fmu"
     path = Path(out_dir) / f"{name}.fmu"
-    if not is_current(path, name):
-        build_fmu(name, out_dir)
+    if not is_current(path, name, backend):
+        build_fmu(name, out_dir, backend)
     return path
 
 
-def build_all(out_dir: Path) -> list[Path]:
-    """Build every FMU of :data:`FMUS` into ``out_dir``; return the paths written."""
-    return [build_fmu(r.name, out_dir) for r in FMUS]
+def build_all(out_dir: Path, backend: str = DEFAULT_BACKEND) -> list[Path]:
+    """Build every FMU of :data:`FMUS` into ``out_dir``; return the paths written.
+
+    FrictionPlant is built with ``backend``; the others are pythonfmu FMUs.
+    """
+    return [build_fmu(r.name, out_dir, backend) for r in FMUS]

@@ -33,7 +33,7 @@ from papwc.errors import BuildError, OutputError
 from papwc.fmubuild.model_description import complete_model_description, rewrite_fmu
 from papwc.model.variables import Variable
 
-__all__ = ["STATE_OPTIONS", "FmuSource", "build_pythonfmu", "guid"]
+__all__ = ["PYTHON_MIN", "STATE_OPTIONS", "FmuSource", "build_pythonfmu", "guid"]
 
 #: CoSimulation capability flags set on every FMU of the project unless told otherwise.
 STATE_OPTIONS: dict[str, bool] = {
@@ -78,6 +78,29 @@ def _pythonfmu_builder():
             "FMUs before loading any pythonfmu FMU, or in a new process"
         )
     return FmuBuilder
+
+
+#: Oldest Python a pythonfmu FMU of the project runs in (its bundled code needs 3.10).
+PYTHON_MIN = (3, 10)
+
+
+def _bundle_init(name: str) -> str:
+    """The bundle package's ``__init__.py``: refuses an older Python with one clear line.
+
+    A pythonfmu FMU runs in the host's Python; an older one would fail at the first call
+    that reaches code it cannot run (fmi2Fatal). The error raised here makes
+    fmi2Instantiate fail with this message instead.
+    """
+    low = ".".join(map(str, PYTHON_MIN))
+    return (
+        f'"""The papwc code bundled into {name}.fmu (model layer, glue)."""\n\n'
+        "import sys\n\n"
+        f"if sys.version_info < {PYTHON_MIN!r}:\n"
+        f"    raise ImportError(\"{name}.fmu (pythonfmu) needs Python {low} or newer in the \"\n"
+        "                      \"host; this host runs Python \" + sys.version.split()[0]\n"
+        f"                      + \" (papwc build's native FrictionPlant.fmu needs no \"\n"
+        "                      \"Python)\")\n"
+    )
 
 
 def _files(folder: Path) -> list[Path]:
@@ -151,6 +174,8 @@ class FmuSource:
         add("extra", repr((self.package, sorted(self.options.items()), list(self.variables),
                            self.default_experiment)).encode())
         add("pythonfmu", pythonfmu.__version__.encode())
+        if self.package:
+            add("init", _bundle_init(Path(self.script).stem).encode())
         return h.hexdigest()
 
 
@@ -206,8 +231,7 @@ def build_pythonfmu(source: FmuSource, out_dir: Path) -> Path:
         if package:
             target = src / package
             target.mkdir()
-            (target / "__init__.py").write_text(
-                f'"""The papwc code bundled into {script.stem}.fmu (model layer, glue)."""\n')
+            (target / "__init__.py").write_text(_bundle_init(script.stem))
             for name, folder in sorted(source.bundle.items()):
                 shutil.copytree(folder, target / name, ignore=_IGNORE)
             project_files.append(target)

@@ -164,7 +164,6 @@ class FmuSlave:
         self._watched: list[str] = []
         self._owns_dir = False
         self._fatal = False
-        self._initialized_once = False
         self.restart_input = restart_input
         self._restarts = 0
         # Everything that opens the file goes through papwc.master.archive: a
@@ -184,6 +183,11 @@ class FmuSlave:
                     or self.vars[restart_input].type != "Integer"):
                 raise FmuError(f"{self.where}: has no Integer input {restart_input!r}")
             self._can_state = bool(self.md.coSimulation.canGetAndSetFMUstate)
+            #: Whether initialization has been entered since the instance was made or reset:
+            #: a new initialization then starts with fmi2Reset (a native FMU) or with a new
+            #: instance (a pythonfmu FMU, which has no reset of its own).
+            self._entered = False
+            self._resets = not (self.md.generationTool or "").startswith("PythonFMU")
             self._refresh: Callable[[], None] = lambda: None
             self._real_read: tuple[Any, ...] | None = None
             #: What a Real input was last set to, by name: [value, sign of value] or [NaN]
@@ -242,6 +246,7 @@ class FmuSlave:
         self._call("fmi2Instantiate", lambda: self._fmu.instantiate(
             callbacks=self._callbacks, loggingOn=True))
         self._c.value = self._fmu.component
+        self._entered = False
 
     def _call(self, name: str, fn: Callable[[], Any]) -> Any:
         from fmpy.fmi1 import FMICallException
@@ -272,6 +277,17 @@ class FmuSlave:
     def variables(self) -> Mapping[str, str]:
         """Causality of every variable of the FMU."""
         return {name: v.causality for name, v in self.vars.items()}
+
+    @property
+    def reusable(self) -> bool:
+        """Whether a new simulation may take this instance (``fmi2Reset`` brings it back to
+        its start; not after an fmi2Fatal, nor for a pythonfmu FMU, which has no reset)."""
+        return self._fmu is not None and self._resets and not getattr(self, "_fatal", False)
+
+    def replace_start_values(self, values: Mapping[str, Any]) -> None:
+        """Forget the start values set so far; set ``values`` (see :meth:`set_start_values`)."""
+        self._start.clear()
+        self.set_start_values(values)
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
         """Parameters and input start values, applied at every (re)initialization."""
@@ -435,23 +451,33 @@ class FmuSlave:
             exitInitializationMode (FrictionPlant.fmu and PulseController.fmu
             refuse invalid parameters that way).
         """
-        if self._initialized_once:
-            # FMI 2.0 initializes an instance once: a new one takes the start values (an
-            # initialized one refuses parameters, which pythonfmu's FMUs only log).
-            self._free_snapshot()
-            self._call("fmi2FreeInstance",
-                       lambda: self._fmu.fmi2FreeInstance(self._fmu.component))
-            self._instantiate()
-        self._initialized_once = True
         self.time = float(start_time)
         self._forget_inputs()
+        if self._entered:
+            # FMI 2.0 initializes an instance once: a native FMU is reset; a pythonfmu FMU,
+            # which has no reset (an initialized one only logs that it refuses parameters),
+            # is replaced by a new instance that takes the start values.
+            self._free_snapshot()
+            if self._resets:
+                self._call("fmi2Reset", self._fmu.reset)
+            else:
+                self._call("fmi2FreeInstance",
+                           lambda: self._fmu.fmi2FreeInstance(self._fmu.component))
+                self._instantiate()
+        self._entered = True
         self._call("fmi2SetupExperiment", lambda: self._fmu.setupExperiment(
             startTime=start_time))
         self._set_now(self._start)
         self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
         before = self.log.count
-        self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+        try:
+            self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
+            failed = None
+        except FmuError as exc:  # a native FMU refuses the parameters with fmi2Error
+            failed = exc
         refused = _refusals(self.log.since(before))
+        if failed is not None and not refused:
+            raise failed
         if refused:
             raise FmuError(f"{self.name}: fmi2ExitInitializationMode at t = {self.time!r} s "
                            "refused the parameters: " + "; ".join(refused))
