@@ -32,7 +32,7 @@ def make_parser() -> argparse.ArgumentParser:
             formatter_class=argparse.RawDescriptionHelpFormatter,
         )
         module.add_arguments(p)
-        p.set_defaults(_run=module.run)
+        p.set_defaults(_run=module.run, _memory_hint=getattr(module, "MEMORY_HINT", None))
     return parser
 
 
@@ -44,16 +44,22 @@ def main(argv: list[str] | None = None) -> int:
     input (a file, a field, an option); 130 interrupted (Ctrl-C).
     """
     args = make_parser().parse_args(argv)
-    return run_command(f"papwc {args.command}", lambda: args._run(args))
+    return run_command(f"papwc {args.command}", lambda: args._run(args), args._memory_hint)
 
 
-def run_command(name: str, run: Callable[[], int | None]) -> int:
+#: The flags the out-of-memory message names when a command names none of its own.
+MEMORY_HINT = "--max-steps, --max-runs, --workers"
+
+
+def run_command(name: str, run: Callable[[], int | None], memory_hint: str | None = None
+                ) -> int:
     """Run a command's body ``run``; return its exit code, its failures each in one line.
 
     ``name`` opens the line on standard error (``papwc run``, ``python -m
     papwc.analysis.ringing``). Exit codes as :func:`main`'s: a :class:`PapwcError` its own
     (2 by default), Ctrl-C 130, an operating-system error (also standard output closed or
-    full) or no memory 1. ``SystemExit`` (argparse's refusals) passes through.
+    full) or no memory 1 (the message names ``memory_hint``, the flags that lower the work).
+    ``SystemExit`` (argparse's refusals) passes through.
     """
     stdout = sys.stdout
     if stdout is not None:
@@ -66,7 +72,10 @@ def run_command(name: str, run: Callable[[], int | None]) -> int:
     except PapwcError as exc:
         _error(name, str(exc))
         return getattr(exc, "exit_code", 2)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
+        if str(exc) == "terminated (SIGTERM)":  # papwc.runner.Terminated
+            _error(name, "terminated (SIGTERM)", prefix="")
+            return 143
         _error(name, "interrupted", prefix="")
         return 130
     except OSError as exc:
@@ -77,8 +86,8 @@ def run_command(name: str, run: Callable[[], int | None]) -> int:
             _error(name, describe_os_error(exc))
         return 1
     except MemoryError:
-        _error(name, "out of memory; lower the work asked for (e.g. --max-steps, --max-runs, "
-                     "--workers)")
+        _error(name, "out of memory; lower the work asked for (e.g. "
+                     f"{memory_hint or MEMORY_HINT})")
         return 1
     finally:
         if isinstance(sys.stdout, _Stdout):

@@ -76,7 +76,14 @@ def host_environment(platform: str | None = None) -> str:
     """
     platform = platform or sys.platform
     if platform.startswith("linux"):
-        return f"export LD_PRELOAD={libpython()}"
+        import shlex
+
+        path = str(libpython())
+        if any(c in path for c in " :\t\n"):
+            # the dynamic loader splits LD_PRELOAD at spaces and colons, quoted or not
+            raise PapwcError(f"{path!r}: LD_PRELOAD cannot hold a path with a space or colon; "
+                             "link the library to a path without them and preload the link")
+        return f"export LD_PRELOAD={shlex.quote(path)}"
     if platform.startswith(("win32", "cygwin")):
         folder = Path(sys.base_prefix)
         if not (folder / "python3.dll").is_file():
@@ -84,3 +91,72 @@ def host_environment(platform: str | None = None) -> str:
         return f'set "PATH={folder};%PATH%"'
     raise PapwcError(f"platform {platform!r}: pythonfmu 0.7.0 FMUs have binaries for Linux "
                      "and Windows only")
+
+
+def ecos_executable() -> Path:
+    """The ``ecos`` program of the ecospy wheel, executable.
+
+    The wheel installs ``ecospy/binaries/ecos`` (and its ``proxyfmu``) without the
+    run bit; they are made executable in place, or, where the package folder is
+    read-only, copied into ``~/.cache/papwc/ecos-<ecospy version>/`` and made
+    executable there.
+
+    Raises
+    ------
+    PapwcError
+        If ecospy is not installed or holds no ``ecos`` program.
+    """
+    import os
+    import shutil
+    import stat
+
+    try:
+        import ecospy
+    except (ImportError, OSError) as exc:  # OSError: libtbb.so.12 missing
+        raise PapwcError(f"ecos needs the ecospy package (pip install -e '.[test]', and "
+                         f"Debian's libtbb12): {exc}") from None
+    folder = Path(ecospy.__file__).parent / "binaries"
+    names = [n for n in ("ecos", "proxyfmu") if (folder / n).is_file()]
+    if "ecos" not in names:
+        raise PapwcError(f"no ecos program in {folder}")
+    if all(os.access(folder / n, os.X_OK) for n in names):
+        return folder / "ecos"
+    try:
+        for name in names:
+            path = folder / name
+            path.chmod(path.stat().st_mode | stat.S_IXUSR | stat.S_IXGRP | stat.S_IXOTH)
+        return folder / "ecos"
+    except OSError:
+        pass
+    version = getattr(ecospy, "__version__", "unknown")
+    cache = Path.home() / ".cache" / "papwc" / f"ecos-{version}"
+    cache.mkdir(parents=True, exist_ok=True)
+    for name in names:
+        target = cache / name
+        if not os.access(target, os.X_OK):
+            shutil.copyfile(folder / name, target)
+            target.chmod(0o755)
+    return cache / "ecos"
+
+
+def ecos_main(argv: list[str] | None = None) -> int:
+    """The ``ecos`` console script: ecospy's ecos program, runnable, with libpython preloaded.
+
+    ``ecos simulate --path build/ClosedLoop.ssp ...`` then works in the venv as the
+    README writes it (the wheel's own program lacks the run bit, and a C++ host needs
+    libpython preloaded to load the project's FMUs, see :func:`host_environment`).
+    """
+    import os
+
+    try:
+        program = ecos_executable()
+        env = dict(os.environ)
+        if sys.platform.startswith("linux"):
+            lib = str(libpython())
+            env["LD_PRELOAD"] = " ".join(p for p in (lib, env.get("LD_PRELOAD", "")) if p)
+    except PapwcError as exc:
+        print(f"ecos: error: {exc}", file=sys.stderr)
+        return 2
+    args = list(sys.argv[1:] if argv is None else argv)
+    os.execve(program, [str(program), *args], env)
+    return 0  # not reached

@@ -26,7 +26,14 @@ from pathlib import Path
 from papwc.errors import FmuError
 from papwc.master import FmuSlave, PhysicsSlave, RunResult, Slave, run_controller, summarize
 from papwc.master.pulses import ROW_COLUMNS, PulseBound
-from papwc.output import make_folder, remove_file, write_rows, write_text
+from papwc.output import (
+    lock_folder,
+    make_folder,
+    refuse_link,
+    remove_file,
+    write_rows,
+    write_text,
+)
 from papwc.scenario import Scenario
 
 SUMMARY_COLUMNS = [
@@ -49,9 +56,13 @@ def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> P
         if not path.is_file():
             what = "is not a file" if path.exists() else "does not exist"
             raise FmuError(f"plant FMU {str(path)!r} {what}")
+        from papwc.master.fmu import check_fmu
+
+        check_fmu(path, where=f"plant FMU {str(path)!r}")
         return path
     from papwc.fmubuild.fmus import current_fmu
 
+    refuse_link(Path(out) / "fmu")  # a folder the command fills is not followed
     return current_fmu("FrictionPlant", Path(out) / "fmu")
 
 
@@ -61,20 +72,41 @@ class RunTimeout(Exception):
 
 #: Communication steps between two looks at the clock of a run with a time limit.
 _CLOCK_EVERY = 256
-#: Set by Ctrl-C while :func:`deferred_interrupt` is active.
-_INTERRUPT = {"requested": False}
+#: Set by Ctrl-C or SIGTERM (to the signal's number) while :func:`deferred_interrupt` is
+#: active.
+_INTERRUPT: dict[str, int] = {"requested": 0}
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM stopped the command (handled as Ctrl-C is: what was computed is kept)."""
+
+    def __init__(self) -> None:
+        super().__init__("terminated (SIGTERM)")
+
+
+def interruption(signum: int | None = None) -> KeyboardInterrupt:
+    """The exception of a deferred Ctrl-C (KeyboardInterrupt) or SIGTERM (:class:`Terminated`)."""
+    signum = _INTERRUPT["requested"] if signum is None else signum
+    return Terminated() if signum == signal.SIGTERM else KeyboardInterrupt()
+
+
+def interrupt_requested() -> bool:
+    """Whether a Ctrl-C or SIGTERM waits to be raised (see :func:`deferred_interrupt`)."""
+    return bool(_INTERRUPT["requested"])
 
 
 @contextlib.contextmanager
 def deferred_interrupt() -> Iterator[None]:
-    """Ctrl-C raises KeyboardInterrupt between two communication steps, not inside an FMU.
+    """Ctrl-C or SIGTERM raise between two communication steps, not inside an FMU.
 
     An FMU made with pythonfmu runs its Python code in this interpreter: a
     KeyboardInterrupt raised there becomes fmi2Fatal (the instance is lost and
     the run goes on with the next controller). Within this block the first
-    Ctrl-C only sets a flag, which the plant's step checks (see
-    :func:`run_scenario`); a second one raises at once. Outside the main thread,
-    or where Ctrl-C is ignored (battery workers), nothing changes.
+    Ctrl-C or SIGTERM only sets a flag, which the plant's step checks (see
+    :func:`run_scenario`; ``papwc cosim`` checks it after every row); a second
+    one raises at once. SIGTERM raises :class:`Terminated`, a KeyboardInterrupt.
+    Outside the main thread, or where Ctrl-C is ignored (battery workers),
+    nothing changes; SIGTERM is deferred only where it has its default action.
     """
     if threading.current_thread() is not threading.main_thread() or (
             signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
@@ -83,18 +115,23 @@ def deferred_interrupt() -> Iterator[None]:
 
     def handler(signum, frame) -> None:
         if _INTERRUPT["requested"]:
-            raise KeyboardInterrupt
-        _INTERRUPT["requested"] = True
+            raise interruption(signum)
+        _INTERRUPT["requested"] = signum
 
-    _INTERRUPT["requested"] = False
+    _INTERRUPT["requested"] = 0
+    term = signal.getsignal(signal.SIGTERM) == signal.SIG_DFL
     signal.signal(signal.SIGINT, handler)
+    if term:
+        signal.signal(signal.SIGTERM, handler)
     try:
         yield
         if _INTERRUPT["requested"]:
-            raise KeyboardInterrupt
+            raise interruption()
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler)
-        _INTERRUPT["requested"] = False
+        if term:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
+        _INTERRUPT["requested"] = 0
 
 
 def _guard_steps(slave, deadline: float | None, limit: float | None):
@@ -111,7 +148,7 @@ def _guard_steps(slave, deadline: float | None, limit: float | None):
     def checked_step(t: float, h: float) -> None:
         do_step(t, h)
         if interrupt["requested"]:
-            raise KeyboardInterrupt
+            raise interruption()
         if deadline is not None:
             count[0] += 1
             if count[0] % _CLOCK_EVERY == 0 and time.monotonic() > deadline:
@@ -225,11 +262,20 @@ class ResultsFolder:
     scenario : Scenario, optional
         The scenario run (one plant for every controller): given, ``pulses.csv``
         lists every pulse with its bound (no runaway) on that plant.
+    own : bool
+        The folder is one the command fills inside its output folder (``runs/``
+        of ``papwc reproduce``): a symbolic link there is refused, not followed.
+
+    The folder is locked (:func:`papwc.output.lock_folder`) from :meth:`start`
+    to :meth:`finish` or :meth:`abort`: a second command writing into it is
+    refused.
     """
 
     def __init__(self, out: str | os.PathLike, labels: Iterable[str],
                  warnings: Mapping[str, str] | None = None, what: str = "papwc run",
-                 scenario: Scenario | None = None) -> None:
+                 scenario: Scenario | None = None, own: bool = False) -> None:
+        self.own = own
+        self._lock = None
         self.out = Path(out)
         self.labels = list(labels)
         self.warnings = dict(warnings or {})
@@ -243,8 +289,25 @@ class ResultsFolder:
         self._partial: tuple[str, list[str]] | None = None
 
     def start(self) -> None:
-        """Create the folder, remove what an earlier run wrote there, mark it incomplete."""
-        make_folder(self.out)
+        """Create and lock the folder, remove what an earlier run wrote there, mark it
+        incomplete; a symbolic link in place of one of those files is refused."""
+        make_folder(self.out, own=self.own)
+        self._lock = lock_folder(self.out, self.what)
+        try:
+            self._clean()
+        except BaseException:
+            self.release()
+            raise
+        self._mark(f"{self.what} started at {time.strftime('%Y-%m-%d %H:%M:%S')} and has not "
+                   "finished (or was stopped)")
+
+    def release(self) -> None:
+        """Release the folder's lock (idempotent)."""
+        if self._lock is not None:
+            self._lock.close()
+            self._lock = None
+
+    def _clean(self) -> None:
         try:
             entries = list(self.out.iterdir())
         except OSError as exc:
@@ -257,10 +320,10 @@ class ResultsFolder:
                INCOMPLETE + ".tmp", *RUN_PLOTS,
                *(Path(p).stem + ".tmp.png" for p in RUN_PLOTS)}
         for entry in entries:
-            if (entry.name in own or _TRACE_FILE.fullmatch(entry.name)) and not entry.is_dir():
-                remove_file(entry)
-        self._mark(f"{self.what} started at {time.strftime('%Y-%m-%d %H:%M:%S')} and has not "
-                   "finished (or was stopped)")
+            if entry.name in own or _TRACE_FILE.fullmatch(entry.name):
+                refuse_link(entry)
+                if not entry.is_dir():
+                    remove_file(entry)
 
     @property
     def _rows_written(self) -> str:
@@ -318,6 +381,7 @@ class ResultsFolder:
             run_plots.run_plots(self.results, self.out)
             self.written += list(RUN_PLOTS)
         remove_file(self.out / INCOMPLETE)
+        self.release()
         return self.rows
 
     def abort(self, reason: str) -> str:
@@ -330,6 +394,8 @@ class ResultsFolder:
             marked = f"; see {self.out / INCOMPLETE}"
         except OSError:
             marked = ""
+        finally:
+            self.release()
         kept = [r.label for r in self.results]
         missing = [label for label in self.labels if label not in kept]
         partial = (f" ({self._partial[0]} in part)" if self._partial is not None
@@ -353,6 +419,10 @@ def run_into_folder(folder: ResultsFolder, run: Callable[[Callable[[RunResult], 
 
     try:
         return run(folder.add)
+    except Terminated:
+        print(f"{folder.what}: terminated; " + folder.abort("terminated (SIGTERM)"),
+              file=sys.stderr)
+        raise
     except KeyboardInterrupt:
         print(f"{folder.what}: interrupted; " + folder.abort("interrupted (Ctrl-C)"),
               file=sys.stderr)

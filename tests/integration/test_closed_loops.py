@@ -108,7 +108,7 @@ def test_missing_or_broken_fmu_is_a_clear_error(tmp_path, friction_plant_fmu):
     with pytest.raises(FmuError, match="does not exist"):
         FmuSlave(tmp_path / "nothing.fmu")
     (tmp_path / "broken.fmu").write_text("not a zip")
-    with pytest.raises(FmuError, match="cannot read modelDescription.xml"):
+    with pytest.raises(FmuError, match="broken.fmu'?: not a zip archive"):
         FmuSlave(tmp_path / "broken.fmu")
     with pytest.raises(FmuError, match="has no Integer input 'maneuver'"):
         FmuSlave(friction_plant_fmu, restart_input="maneuver")

@@ -5,7 +5,12 @@ from __future__ import annotations
 
 import csv
 import dataclasses
+import os
 import re
+import signal
+import subprocess
+import sys
+import time
 import zipfile
 from pathlib import Path
 
@@ -160,3 +165,132 @@ def test_a_refused_step_keeps_the_rows_before_it(ssp, tmp_path, capsys) -> None:
     assert "differs from the sample period T = 0.01 s" in err
     rows = list(csv.reader((out / "ClosedLoop.csv").read_text().splitlines()))
     assert len(rows) == 2 and rows[1][0] == "0.0"  # the values after initialization
+
+
+@pytest.mark.parametrize(("name", "value", "want"), [
+    ("max_pulses", "4294967297",
+     "controller.max_pulses = 4294967297: must satisfy 1 <= max_pulses <= 1000000 (the FMU's "
+     "declared range)"),
+    ("seed", "99999999999999999999",
+     "plant.seed = 99999999999999999999: must satisfy 0 <= seed <= 2147483647 (the FMU's "
+     "declared range)"),
+    ("seed", "-1", "plant.seed = -1: must satisfy 0 <= seed <= 2147483647"),
+])
+def test_an_integer_binding_outside_its_range_is_refused_not_wrapped(
+        name, value, want, ssp, tmp_path, capsys) -> None:
+    """Issue 27: an Integer does not wrap modulo 2**32 (max_pulses = 4294967297 ran with 1)."""
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [(
+        rf'(<ssv:Parameter name="{name}">\s*<ssv:Integer) value="[0-9]+"',
+        rf'\1 value="{value}"')])
+    line = refused(capsys, tmp_path, bad)
+    assert f'<ssv:Parameter name="{name}">' in line and want in line, line
+
+
+@pytest.mark.parametrize(("attribute", "value"), [
+    ("stopTime", "1.7e308"), ("startTime", "-1.7e308"), ("stopTime", "inf"),
+    ("startTime", "nan")])
+def test_default_experiment_times_are_checked_before_arithmetic(attribute, value, ssp,
+                                                                tmp_path, capsys) -> None:
+    """Issue 27: times of +-1.7e308 gave an OverflowError traceback."""
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [(rf'{attribute}="[0-9.]+"',
+                                               f'{attribute}="{value}"')])
+    line = refused(capsys, tmp_path, bad)
+    assert "<ssd:DefaultExperiment>" in line
+    assert f"{attribute} = '{value}' s: must be a finite number within -1e+09..1e+09 s" in line
+
+
+def test_a_stop_and_step_of_overflowing_steps_are_refused(ssp, tmp_path, capsys) -> None:
+    line = refused(capsys, tmp_path, ssp, "--stop", "1e308", "--step", "1e-300")
+    assert "= inf steps; at most 10000000" in line, line
+
+
+def _cosim_process(ssp: Path, out: Path, tmp: Path) -> subprocess.Popen:
+    env = {**os.environ, "PYTHONPATH": str(PROJECT_DIR / "controller"), "TMPDIR": str(tmp)}
+    return subprocess.Popen([sys.executable, "-m", "papwc.cli", "cosim", str(ssp), "--out",
+                             str(out), "--stop", "5000", "--variables", "plant.x",
+                             "controller.pulses"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("signum", "code", "word"), [
+    (signal.SIGINT, 130, "interrupted (Ctrl-C)"), (signal.SIGTERM, 143, "terminated (SIGTERM)")])
+def test_an_interrupted_cosim_keeps_every_row_with_an_incomplete_marker(
+        signum, code, word, ssp, tmp_path) -> None:
+    """Issue 27: Ctrl-C or SIGTERM after a while left no output folder; now the rows streamed
+    so far are in the CSV, INCOMPLETE says so, nothing is left in the temporary folder."""
+    out, tmp = tmp_path / "out", tmp_path / "tmp"
+    tmp.mkdir()
+    process = _cosim_process(ssp, out, tmp)
+    partial = out / "ClosedLoop.csv.tmp"
+    deadline = time.monotonic() + 120
+    while not (partial.exists() and partial.stat().st_size > 200_000):
+        assert process.poll() is None and time.monotonic() < deadline, process.communicate()
+        time.sleep(0.05)
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=60)
+    assert process.returncode == code, err
+    assert "Traceback" not in err
+    rows = list(csv.reader((out / "ClosedLoop.csv").read_text().splitlines()))
+    assert rows[0] == ["time", "plant.x", "controller.pulses"]
+    times = [float(r[0]) for r in rows[1:]]
+    assert len(times) > 1000
+    assert times == [k * 0.01 for k in range(len(times))]  # every row, none torn
+    kept = re.search(r"kept (\d+) of 500000 steps", err)
+    assert kept and int(kept.group(1)) == len(times) - 1, err
+    marker = (out / "INCOMPLETE").read_text()
+    assert word in marker and f"{len(times)} rows" in marker
+    assert not partial.exists() and not (out / "ClosedLoop.png").exists()
+    assert list(tmp.iterdir()) == []
+
+
+def test_two_cosims_into_one_folder_the_second_is_refused(ssp, tmp_path, capsys) -> None:
+    from papwc.output import lock_folder
+
+    out = tmp_path / "out"
+    out.mkdir()
+    with lock_folder(out, "papwc run"):
+        assert main(["cosim", str(ssp), "--out", str(out)]) == 1
+        assert sorted(p.name for p in out.iterdir()) == [".papwc.lock"]  # (the other's)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "papwc run (process" in err[0], err
+    assert "is writing into this folder" in err[0]
+    assert list(out.iterdir()) == []
+
+
+def test_a_link_planted_as_the_csvs_temporary_file_is_refused(ssp, tmp_path, capsys) -> None:
+    """Issue 27: cosim wrote through a planted ``<file>.tmp`` symlink, outside --out."""
+    out, victim = tmp_path / "out", tmp_path / "victim.txt"
+    out.mkdir()
+    victim.write_text("keep me")
+    (out / "ClosedLoop.csv.tmp").symlink_to(victim)
+    assert main(["cosim", str(ssp), "--out", str(out)]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "a symbolic link is in its place" in err[0], err
+    assert victim.read_text() == "keep me"
+
+
+def test_out_of_memory_names_the_flags_cosim_has(ssp, tmp_path, capsys, monkeypatch) -> None:
+    import papwc.cosim
+
+    def no_memory(*args, **kwargs):
+        raise MemoryError
+
+    monkeypatch.setattr(papwc.cosim, "cosim", no_memory)
+    assert main(["cosim", str(ssp), "--out", str(tmp_path / "out")]) == 1
+    line = capsys.readouterr().err.strip()
+    assert line == ("papwc cosim: error: out of memory; lower the work asked for (e.g. --stop, "
+                    "--variables)")
+
+
+@pytest.mark.slow
+def test_cosim_memory_does_not_grow_with_the_runs_length(ssp, tmp_path) -> None:
+    """Peak RSS of 2e5 steps (every output recorded) is within 10 MB of that of 4e4 steps
+    (both beyond the rows the plot keeps); ``papwc bench`` measures 1e6 steps against the
+    200 MB goal."""
+    from papwc.bench.cosim import cosim_peak_mb
+
+    short = cosim_peak_mb(ssp, tmp_path / "short", 400.0)
+    long = cosim_peak_mb(ssp, tmp_path / "long", 2000.0)
+    assert long - short < 10.0, (short, long)
+    assert long < 200.0

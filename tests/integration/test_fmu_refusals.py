@@ -273,3 +273,22 @@ def test_a_percent_in_a_logged_value_is_shown_not_executed(pulse_controller_fmu:
     assert done.returncode == 0, done.stderr[-2000:]
     assert "parameter kind = '%s%s%s%n%n%n 100%': must be one of" in done.stdout
     assert "c%n%n: parameter" in done.stdout
+
+
+def test_pulse_controller_refusals_are_not_silent(pulse_controller_fmu: Path, capfd,
+                                                  monkeypatch) -> None:
+    """Issue 27: pythonfmu returns fmi2OK for a refused set or setFMUstate (it cannot return
+    fmi2Error); PulseController.fmu writes the refusal to stderr as well as logging it with
+    status Error, and the master raises on it as on fmi2Error."""
+    monkeypatch.setenv("PAPWC_FMU_STDERR", "1")
+    with FmuSlave(pulse_controller_fmu, name="controller") as controller:
+        controller.initialize()
+        capfd.readouterr()
+        with pytest.raises(FmuError, match=r"controller: setting K_c at t = 0.0 s was refused: "
+                                           r"\[Error\] .*parameter K_c cannot be set after "
+                                           r"initialization: 0.5 refused"):
+            controller._set_now({"K_c": 0.5})
+        err = capfd.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith(
+            "PulseController controller: parameter K_c cannot be set after initialization"), err
+        assert "pythonfmu returns fmi2OK for this call" in err[0]

@@ -44,3 +44,24 @@ def test_help_lists_the_new_commands_and_imports_nothing_heavy() -> None:
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=60, check=True)
     assert done.stdout.strip() == "[] True True"
+
+
+@pytest.mark.parametrize(("path", "line"), [
+    ("/opt/py$x/lib/libpython3.11.so.1.0",
+     "export LD_PRELOAD='/opt/py$x/lib/libpython3.11.so.1.0'"),
+    ("/opt/my python/libpython3.11.so.1.0", None), ("/opt/a:b/libpython3.11.so.1.0", None)])
+def test_a_library_path_the_shell_or_the_loader_would_split_is_quoted_or_refused(
+        path, line, monkeypatch, capsys) -> None:
+    """Issue 27: a space in the library path printed an unquoted line; LD_PRELOAD itself is
+    split at spaces and colons by the loader, quoted or not, so such a path is refused."""
+    import papwc.hostenv
+
+    monkeypatch.setattr(papwc.hostenv, "libpython", lambda: Path(path))
+    if line is None:
+        assert main(["hostenv"]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "LD_PRELOAD cannot hold a path with a space or colon" in err[0]
+        return
+    assert host_environment("linux") == line
+    assert main(["hostenv", "--value"]) == 0
+    assert capsys.readouterr().out == f"{path}\n"

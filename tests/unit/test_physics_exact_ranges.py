@@ -25,7 +25,7 @@ from hypothesis import strategies as st
 
 from papwc.controllers.settings import SETTINGS_BY_NAME
 from papwc.model.maneuver import MANEUVER_VARIABLES
-from papwc.model.plant import PLANT_PARAMETERS
+from papwc.model.plant import OFF_OR_AT_LEAST, PLANT_PARAMETERS
 from papwc.model.pulse import pulse_amplitude, pulse_displacement, pulse_width
 from papwc.model.stickslip import step
 from papwc.model.variables import by_name
@@ -216,7 +216,8 @@ def accepted_scenario(draw):
     plant = {"m": draw(in_range(PLANT["m"])), "f_c": f_c,
              "f_s": max(f_c, min(f_c * draw(magnitude(1.0, 100.0)), PLANT["f_s"].max)),
              "c": draw(in_range(PLANT["c"])),
-             "x_resolution": draw(st.one_of(st.just(0.0), in_range(PLANT["x_resolution"])))}
+             "x_resolution": draw(st.one_of(st.just(0.0), magnitude(
+                 OFF_OR_AT_LEAST["x_resolution"], PLANT["x_resolution"].max)))}
     maneuver = {"x_ref": draw(signed(in_range(MANEUVER["x_ref"]))), "T": T,
                 "duration": T * draw(st.integers(1, 150)), "iterations": draw(st.integers(1, 2)),
                 "timing": draw(st.sampled_from(["immediate", "delayed"])),

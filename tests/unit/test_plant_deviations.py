@@ -34,8 +34,12 @@ from papwc.model.effects.draws import normal, uniform
 from papwc.model.effects.encoder import EncoderNoise
 from papwc.model.effects.stiction import RandomStiction
 from papwc.model.plant import (
+    ACCELERATION_MAX,
+    DAMPING_RATE_MAX,
     DEVIATION_PARAMETERS,
+    INTEGRATED,
     MODE_FREQUENCY_MAX,
+    OFF_OR_AT_LEAST,
     PLANT_DEFAULTS,
     plant_problems,
 )
@@ -414,6 +418,9 @@ def _log_uniform(lo: float, hi: float):
     return st.floats(math.log10(lo), math.log10(hi)).map(lambda e: 10.0**e)
 
 
+DEVIATION_NAMES = {v.name for v in DEVIATION_PARAMETERS}
+
+
 @st.composite
 def plants(draw) -> dict:
     """Valid parameter sets over the allowed ranges, each deviation on or off."""
@@ -444,6 +451,11 @@ def plants(draw) -> dict:
         p["seed"] = draw(st.integers(0, 2**31 - 1))
     if draw(st.booleans()):
         p["noise_std"] = draw(_log_uniform(1e-9, 1e-3))
+    for name, low in OFF_OR_AT_LEAST.items():  # a smaller one than these is refused: none
+        if name in p and 0.0 < p[name] < low and name in DEVIATION_NAMES:
+            p[name] = 0.0
+    if any(p.get(name, 0.0) > 0.0 for name in INTEGRATED):  # the integrated plant's bounds
+        p["m"] = max(p["m"], p["f_s"] / ACCELERATION_MAX, p["c"] / DAMPING_RATE_MAX)
     return p
 
 

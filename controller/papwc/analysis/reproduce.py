@@ -15,6 +15,7 @@ from papwc.errors import ScenarioError  # noqa: E402
 from papwc.master import RunResult, summarize  # noqa: E402
 from papwc.model.pulse import b_coulomb, pulse_displacement, pulse_width  # noqa: E402
 from papwc.output import (  # noqa: E402
+    lock_folder,
     make_folder,
     remove_file,
     save_figure,
@@ -136,8 +137,15 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
     scenario = load_scenario(path)
     extra_scenarios = [] if scenario_path else [load_scenario(scenario_file(name))
                                                 for name in EXTRA_SCENARIOS]
-    make_folder(out)
     fmu = ensure_plant_fmu(fmu, out)
+    make_folder(out)
+    with lock_folder(out, "papwc reproduce"):
+        return _reproduce(out, path, scenario, extra_scenarios, fmu, readings, workers)
+
+
+def _reproduce(out: Path, path: Path, scenario, extra_scenarios: list, fmu: Path,
+               readings: bool, workers: int | None) -> int:
+    """:func:`reproduce` once its inputs are checked and its folder locked."""
     # Results go to disk as they come: runs/ per controller (see papwc.runner), the
     # figures and tables at the end; INCOMPLETE marks the folder until then.
     for name in OUTPUTS:
@@ -148,7 +156,7 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
     scenarios = [scenario, *extra_scenarios]
     folder = ResultsFolder(out / "runs", [label for s in scenarios for label in s.labels],
                            {label: s.warnings_of(label) for s in scenarios for label in s.labels},
-                           what="papwc reproduce")
+                           what="papwc reproduce", own=True)
     folder.start()
     print(f"running {path} ({len(scenario.controllers)} controllers x "
           f"{scenario.maneuver.iterations} iterations) on {fmu} ...")
@@ -187,9 +195,13 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
                [{"quantity": q, "paper": p, "computed": v} for q, p, v in numbers],
                ["quantity", "paper", "computed"])
     claims_md = claims.write_claims(out, scenario, results, fmu, readings, workers)
-    write_text(out / "report.md", _report(path, numbers, results + extra) + "\n" + claims_md)
+    # Every output was removed at the start: a figure there now was drawn by this run (a
+    # scenario without a PWC or PAPWC controller has no figures 3-9).
+    figures = [name for name in OUTPUTS if name.endswith(".png") and (out / name).is_file()]
+    write_text(out / "report.md", _report(path, numbers, results + extra, figures) + "\n"
+               + claims_md)
     remove_file(out / INCOMPLETE)
-    print(f"wrote {out}/fig1.png, fig3.png ... fig9.png, paper_numbers.csv, claims.csv, "
+    print(f"wrote {out}/{', '.join(figures)}, paper_numbers.csv, claims.csv, "
           f"{'readings.csv, ' if readings else ''}report.md, runs/")
     failed = [r for r in results + extra if r.error]
     for r in failed:
@@ -208,7 +220,7 @@ def _cell(text: str) -> str:
     return text.replace("|", "\\|")
 
 
-def _report(path: Path, numbers, results) -> str:
+def _report(path: Path, numbers, results, figures: list[str] | None = None) -> str:
     lines = [
         "# The paper reproduced",
         "",
@@ -236,7 +248,11 @@ def _report(path: Path, numbers, results) -> str:
             lines.append(f"| {r.label} | {tr.iteration} | {s['final_error_m']:.3e} | "
                          f"{s['pulses']} | {_fmt(s['settle_time_s'])} | {s['limit_cycle']} | "
                          f"{_fmt(s['b_hat'])} | {_fmt(s['f_c_hat'])} |")
-    lines += ["", "Figures: fig1.png (Eq. (3) and (4)), fig3.png/fig4.png (error), "
-              "fig5.png/fig6.png (f_p), fig7.png/fig8.png (b_hat), fig9.png (f_c_hat); "
-              "1st and 10th iteration. Traces and summary.csv in runs/.", ""]
+    what = {"fig1.png": "Eq. (3) and (4)", "fig3.png": "error, PWC", "fig4.png": "error, PAPWC",
+            "fig5.png": "f_p, PWC", "fig6.png": "f_p, PAPWC", "fig7.png": "b_hat, PWC",
+            "fig8.png": "b_hat, PAPWC", "fig9.png": "f_c_hat, PAPWC",
+            "fig_exact.png": "error, beyond the paper"}
+    shown = [f"{name} ({what.get(name, '')})" for name in figures or []]
+    lines += ["", "Figures: " + (", ".join(shown) or "none") + "; 1st and last iteration. "
+              "Traces and summary.csv in runs/.", ""]
     return "\n".join(lines)

@@ -98,7 +98,8 @@ Outputs of :func:`run_battery` in the output folder:
   the wrong shape or of other parameters) is skipped with a warning and its run
   computed again (see :mod:`papwc.battery.journal`). On Ctrl-C the runs that
   finished are in it and the message says how to resume.
-  ``journal.jsonl.lock`` keeps two batteries from writing into one folder.
+  ``.papwc.lock`` (:func:`papwc.output.lock_folder`) keeps two commands from writing into
+  one folder.
 - ``results.csv`` -- one row per run, controller and iteration, in the order of
   the runs (battery, case, grid point, draw), controller and iteration: the
   case (a ``case`` column when a battery has cases), the varied fields (one

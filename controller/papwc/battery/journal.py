@@ -15,7 +15,6 @@ has the same GUID, so its finished runs are kept.
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import json
 import math
 import os
@@ -25,7 +24,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 from papwc.errors import BatteryError, OutputError
-from papwc.output import os_error_text
+from papwc.output import create_new, lock_folder, os_error_text
 
 # --- journal ---------------------------------------------------------------------------------
 
@@ -220,17 +219,8 @@ class Journal:
         if path.exists() and not path.is_file():
             raise OutputError(f"cannot write the journal {str(path)!r}: a folder is in the "
                               "way")
-        lock_path = path.with_name(path.name + ".lock")
-        try:
-            self._lock = open(lock_path, "a")  # held until close()
-        except OSError as exc:
-            raise _os_error(lock_path, "open the lock file", exc) from exc
-        try:
-            fcntl.flock(self._lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            self._lock.close()
-            raise BatteryError(f"{path.parent}: another battery is writing into this "
-                               "folder") from None
+        # held until close(); another command writing into the folder is refused
+        self._lock = lock_folder(path.parent, "papwc battery")
         try:
             self._open(header, resume, overwrite)
         except BaseException:
@@ -275,8 +265,9 @@ class Journal:
         self.records = {(r["battery"], r["run_id"]): r for r in kept}
         # Write the header and the records kept (compacted) into a new file.
         tmp = path.with_name(path.name + ".tmp")
+        fd = create_new(tmp)  # never through a link planted there
         try:
-            with open(tmp, "w", encoding="utf-8") as f:
+            with os.fdopen(fd, "w", encoding="utf-8") as f:
                 f.write(json.dumps(header) + "\n")
                 for record in self.records.values():
                     f.write(json.dumps(record) + "\n")
@@ -323,7 +314,12 @@ class Journal:
                 raise _os_error(self.path, "append to the journal", exc) from exc
             self.records[(record["battery"], record["run_id"])] = record
 
-    def close(self) -> None:
-        """Close the file and release the lock."""
+    def close(self, release: bool = True) -> None:
+        """Close the file; release the folder's lock unless ``release`` is false."""
         self._file.close()
+        if release:
+            self.release()
+
+    def release(self) -> None:
+        """Release the folder's lock (idempotent)."""
         self._lock.close()

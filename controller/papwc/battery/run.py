@@ -21,6 +21,9 @@ from papwc.limits import MAX_RUNS, MAX_STEPS
 
 # --- the whole battery -----------------------------------------------------------------------
 
+#: Seconds between two progress lines when standard error is not a terminal.
+PLAIN_PROGRESS_S = 10.0
+
 
 @dataclass
 class BatteryOutcome:
@@ -135,7 +138,8 @@ def run_battery(
     overwrite : bool
         Start afresh even if ``out`` holds a journal.
     progress : bool
-        Show a progress bar on stderr (only if stderr is a terminal).
+        Show a progress bar on stderr if it is a terminal, else a line every
+        :data:`PLAIN_PROGRESS_S` seconds and one when the last run is done.
     max_runs, max_steps : int
         Limits of the runs of the batteries and of the steps of one run
         (checked before any run).
@@ -150,18 +154,18 @@ def run_battery(
         On Ctrl-C: the runs that finished are in the journal (``--resume``).
     """
     start = time.perf_counter()
+    start_clock = time.monotonic()
     out = Path(out)
     fmu = Path(fmu)
     if not fmu.is_file():
         raise BatteryError(f"plant FMU {str(fmu)!r} does not exist")
-    from fmpy import read_model_description
+    from papwc.errors import FmuError
+    from papwc.master.fmu import check_fmu
 
-    try:
-        md = read_model_description(str(fmu))
-    except Exception as exc:  # noqa: BLE001 - fmpy raises plain Exceptions for broken files
-        raise BatteryError(f"{fmu}: not a readable FMU: {exc}") from exc
-    if md.coSimulation is None:
-        raise BatteryError(f"{fmu}: not a Co-Simulation FMU")
+    try:  # refused once, before any work, if it cannot be unpacked, read or loaded
+        md = check_fmu(fmu, where=f"plant FMU {str(fmu)!r}")
+    except FmuError as exc:
+        raise BatteryError(str(exc)) from None
     runs = plan_runs(batteries, max_runs=max_runs, max_steps=max_steps)
     digest = _sha256(fmu)
     key = result_key(md.guid)
@@ -186,11 +190,20 @@ def run_battery(
                    desc="battery", file=sys.stderr, dynamic_ncols=True,
                    disable=not (progress and sys.stderr.isatty()))
 
+        # Not a terminal (a log, a pipe): a plain line every PLAIN_PROGRESS_S seconds instead.
+        plain = progress and not sys.stderr.isatty()
+        told = [time.monotonic()]
+
         def done(record: dict) -> None:
             nonlocal computed
             journal.append(record)
             computed += 1
             bar.update(1)
+            now = time.monotonic()
+            if plain and (now - told[0] >= PLAIN_PROGRESS_S or computed == len(todo)):
+                told[0] = now
+                print(f"battery: {len(journal.records)} of {len(runs)} runs done "
+                      f"({now - start_clock:.0f} s)", file=sys.stderr, flush=True)
 
         with bar:
             by_name = {b.name: b for b in batteries}
@@ -214,10 +227,17 @@ def run_battery(
             run_seconds = time.perf_counter() - run_start
         records = journal.records
     except KeyboardInterrupt:
+        journal.release()
         raise BatteryInterrupted(len(journal.records), len(runs), journal.path) from None
+    except BaseException:
+        journal.release()
+        raise
     finally:
-        journal.close()
-    files = write_outputs(out, batteries, runs, records, digest)
+        journal.close(release=False)  # the folder stays locked while the results are written
+    try:
+        files = write_outputs(out, batteries, runs, records, digest)
+    finally:
+        journal.release()
     failed = [(s.battery, s.run_id, records[(s.battery, s.run_id)]["message"]) for s in runs
               if records[(s.battery, s.run_id)]["status"] != "ok"]
     return BatteryOutcome(len(runs), computed, failed, files, time.perf_counter() - start,

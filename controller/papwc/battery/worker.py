@@ -217,7 +217,11 @@ def local_worker_main(conn, fmu_path: str, owner: int) -> None:
             return
         if task is None:
             return
-        conn.send(("done", run_in_local_worker(task)))
+        record = run_in_local_worker(task)
+        try:
+            conn.send(("done", record))
+        except OSError:  # the battery's process is gone (killed, SIGTERM): no traceback
+            return
 
 
 def run_in_dask_worker(tasks: list[dict], fmu_bytes: bytes, digest: str) -> list[dict]:

@@ -3,8 +3,8 @@
 A section is a function ``f(context) -> list[Row]`` registered with
 :func:`register_section`; :func:`run_sections` calls every registered section
 in order and prints its rows as a small table. The sections are in
-:mod:`.plant`, :mod:`.master`, :mod:`.battery` and :mod:`.realism`; add one by writing such a
-function in a module imported by :func:`load_sections` and decorating it::
+:mod:`.plant`, :mod:`.master`, :mod:`.battery`, :mod:`.realism` and :mod:`.cosim`; add
+one by writing such a function in a module imported by :func:`load_sections` and decorating it::
 
     @register_section("closed loop")
     def closed_loop(context: BenchContext) -> list[Row]:
@@ -187,7 +187,7 @@ def median_interleaved(
 
 
 #: Modules that register sections, in the order their sections run.
-SECTION_MODULES = ("plant", "master", "battery", "realism")
+SECTION_MODULES = ("plant", "master", "battery", "realism", "cosim")
 
 
 def load_sections() -> list[Section]:

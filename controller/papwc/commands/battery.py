@@ -6,9 +6,11 @@ The battery file syntax is described in :mod:`papwc.battery`.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import re
 import shlex
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 from papwc.commands import add_fmu_option
@@ -94,18 +96,29 @@ def run(args: argparse.Namespace) -> int:
         out = Path("results") / (batteries[0].name if len(batteries) == 1 else "battery")
     fmu = ensure_plant_fmu(args.fmu, out)
     try:
-        outcome = run_battery(batteries, out, fmu, workers=args.workers,
-                              scheduler=args.scheduler, resume=args.resume,
-                              overwrite=args.overwrite, progress=not args.quiet,
-                              max_runs=args.max_runs, max_steps=args.max_steps)
+        with _sigterm_as_interrupt():
+            outcome = run_battery(batteries, out, fmu, workers=args.workers,
+                                  scheduler=args.scheduler, resume=args.resume,
+                                  overwrite=args.overwrite, progress=not args.quiet,
+                                  max_runs=args.max_runs, max_steps=args.max_steps)
     except BatteryInterrupted as stop:
         again = " ".join(shlex.quote(str(f)) for f in args.files)
+        from papwc.limits import MAX_RUNS, MAX_STEPS
+
+        # every option that changes what runs, so that the line runs verbatim
         extra = "".join(f" {flag} {shlex.quote(str(value))}" for flag, value in (
-            ("--fmu", args.fmu), ("--scheduler", args.scheduler), ("--workers", args.workers))
-            if value is not None)
-        print(f"papwc battery: interrupted: {stop.done} of {stop.total} runs are in the "
+            ("--fmu", args.fmu), ("--scheduler", args.scheduler), ("--workers", args.workers),
+            ("--max-runs", args.max_runs if args.max_runs != MAX_RUNS else None),
+            ("--max-steps", args.max_steps if args.max_steps != MAX_STEPS else None))
+            if value is not None) + (" --quiet" if args.quiet else "")
+        what = "terminated (SIGTERM)" if _TERMINATED["by"] else "interrupted"
+        print(f"papwc battery: {what}: {stop.done} of {stop.total} runs are in the "
               f"journal {stop.journal}; to finish, run: papwc battery {again} --out "
               f"{shlex.quote(str(out))}{extra} --resume", file=sys.stderr)
+        if _TERMINATED["by"]:
+            from papwc.runner import Terminated
+
+            raise Terminated from None
         raise
     warned = sum(1 for r in outcome.records.values()
                  if r["status"] == "ok" and r["message"].startswith("warning:"))
@@ -125,3 +138,33 @@ def run(args: argparse.Namespace) -> int:
         print(f"error: ... and {len(outcome.failed) - 10} more runs (see results.csv)",
               file=sys.stderr)
     return 1 if outcome.failed else 0
+
+
+#: Whether SIGTERM stopped the battery (see :func:`_sigterm_as_interrupt`).
+_TERMINATED = {"by": False}
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt() -> Iterator[None]:
+    """SIGTERM stops a battery as Ctrl-C does: the journal kept, the resume line printed.
+
+    (Only where SIGTERM has its default action, in the main thread.)
+    """
+    import signal
+    import threading
+
+    _TERMINATED["by"] = False
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGTERM) != signal.SIG_DFL):
+        yield
+        return
+
+    def handler(signum, frame) -> None:
+        _TERMINATED["by"] = True
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)

@@ -59,6 +59,7 @@ def run(args: argparse.Namespace) -> int:
     from papwc.resources import scenario_file
 
     out = default_out(args.out, "build")
+    _check_controller(args)  # 1-based, checked before anything is built
     for path in build_all(out):
         print(path)
     scenario = args.scenario if args.scenario is not None else scenario_file("paper.toml")
@@ -66,3 +67,18 @@ def run(args: argparse.Namespace) -> int:
     print(build_closed_loop_ssp(out, scenario, out / "FrictionPlant.fmu",
                                 out / "PulseController.fmu", index))
     return 0
+
+
+def _check_controller(args: argparse.Namespace) -> None:
+    """Refuse ``--controller N`` outside 1..(number of [[controller]] tables), 1-based."""
+    if args.controller is None:
+        return
+    from papwc.errors import PapwcError
+    from papwc.resources import scenario_file
+    from papwc.scenario import load_scenario
+
+    path = args.scenario if args.scenario is not None else scenario_file("paper.toml")
+    n = len(load_scenario(path).controllers)
+    if not 1 <= args.controller <= n:
+        raise PapwcError(f"--controller {args.controller}: {path} has {n} [[controller]] "
+                         f"table(s); give 1 to {n} (1-based)")

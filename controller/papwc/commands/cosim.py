@@ -9,6 +9,9 @@ from pathlib import Path
 
 from papwc.commands import default_out
 
+#: What the out-of-memory message suggests lowering.
+MEMORY_HINT = "--stop, --variables"
+
 HELP = ("run an SSP (FMI 2.0 Co-Simulation FMUs, parameter bindings, fixed step) with the "
         "master as libcosim runs it; write a CSV and a plot")
 
@@ -17,6 +20,9 @@ The components step side by side (Jacobi) at the SSD's fixed step
 (osp:FixedStepAlgorithm or oms:FixedStepMaster) or --step, from the
 DefaultExperiment's start to its stop time, with every parameter binding
 applied (Strings too). Row 0 of the CSV holds the values after initialization.
+Rows are written as they come (memory does not grow with the run's length);
+until the run has finished, and after Ctrl-C or SIGTERM, DIR holds a file
+INCOMPLETE and the CSV every row recorded before the stop.
 
 examples:
   papwc cosim build/ClosedLoop.ssp                  # writes results/cosim/ClosedLoop.csv, .png
@@ -45,10 +51,9 @@ def run(args: argparse.Namespace) -> int:
     out = default_out(args.out, "results", "cosim")
     # The master reads the FMUs' log and reports a refusal itself, in one line.
     os.environ["PAPWC_FMU_STDERR"] = "0"
-    result, csv_path, png_path = cosim(args.ssp, out, args.variables, args.step, args.stop)
-    steps = len(result.rows) - 1
-    print(f"wrote {csv_path} ({steps} steps of {result.step_size!r} s, "
-          f"{len(result.columns) - 1} variables) and {png_path}")
+    result = cosim(args.ssp, out, args.variables, args.step, args.stop)
+    print(f"wrote {result.csv_path} ({result.steps} steps of {result.step_size!r} s, "
+          f"{len(result.columns) - 1} variables) and {result.png_path}")
     if result.error:
         print(f"papwc cosim: error: {result.error}", file=sys.stderr)
         return 1

@@ -28,6 +28,10 @@ def run(args: argparse.Namespace) -> int:
 
     line = host_environment()
     if args.value:
+        import shlex
+
         line = line.split("=", 1)[1].split(";", 1)[0].strip('"')
+        if line.startswith("'"):
+            line = shlex.split(line)[0]
     print(line)
     return 0

@@ -23,15 +23,21 @@ rest, the same way in every FMU:
   parse or does not belong to this FMU is refused before anything changes,
   and the instance keeps working.
 
-pythonfmu 0.7.0 returns fmi2OK for a refused ``setReal`` or ``setFMUstate``
-(its only other outcome is fmi2Fatal); the refusal is in the log.
+pythonfmu 0.7.0 returns fmi2OK for a refused ``setReal`` (``setInteger``,
+``setBoolean``, ``setString``) or ``setFMUstate``: it ignores what the Python
+method returns, and an exception becomes fmi2Fatal, which frees the instance.
+An FMU made with it cannot return fmi2Error or fmi2Discard from these calls, so
+the refusal is logged with status Error and written to stderr (see below);
+papwc's master (:class:`papwc.master.fmu.FmuSlave`) reads the log after each
+such call and raises on a refusal, as if the call had returned fmi2Error.
 
 pythonfmu 0.7.0 also drops every log message unless the host turned debug
 logging on, and does not tell the model whether it did. So that a refusal is
 never silent (``fmpy simulate`` ends a run at a Discard with exit status 0), the
-refused initialization and the first refused step of an instance are also
-written to the process's stderr, one line each, unless the environment sets
-``PAPWC_FMU_STDERR=0`` (a host that reads the log itself, as ``papwc cosim``).
+refused initialization, a refused set or ``setFMUstate`` and the first refused
+step of an instance are also written to the process's stderr, one line each,
+unless the environment sets ``PAPWC_FMU_STDERR=0`` (a host that reads the log
+itself, as ``papwc cosim``).
 """
 
 from __future__ import annotations
@@ -141,9 +147,8 @@ class CheckedSlave(Fmi2Slave):
 
         def set_parameter(value: Any) -> None:
             if self._initialized:
-                self.log(f"{self.instance_name}: parameter {name} cannot be set after "
-                         f"initialization: {value!r} refused, it stays "
-                         f"{getattr(self, name)!r}", Fmi2Status.error)
+                self.refuse(f"parameter {name} cannot be set after initialization: "
+                            f"{value!r} refused, it stays {getattr(self, name)!r}")
                 return
             setattr(self, name, value)
             self.parameter_set(name)
@@ -155,8 +160,8 @@ class CheckedSlave(Fmi2Slave):
 
         def set_input(value: Any) -> None:
             if self._terminated:
-                self.log(f"{self.instance_name}: input {name} cannot be set after "
-                         f"fmi2Terminate: {value!r} refused", Fmi2Status.error)
+                self.refuse(f"input {name} cannot be set after fmi2Terminate: {value!r} "
+                            "refused")
                 return
             setattr(self, name, value)
 
@@ -166,10 +171,18 @@ class CheckedSlave(Fmi2Slave):
         name = var.name
 
         def refuse(value: Any) -> None:
-            self.log(f"{self.instance_name}: {name} is an output and cannot be set: "
-                     f"{value!r} refused", Fmi2Status.error)
+            self.refuse(f"{name} is an output and cannot be set: {value!r} refused")
 
         return refuse
+
+    def refuse(self, message: str) -> None:
+        """Refuse a call: log ``message`` with status Error and write it to stderr.
+
+        (The call still returns fmi2OK under pythonfmu 0.7.0; see the module docstring.)
+        """
+        self.log(f"{self.instance_name}: {message}", Fmi2Status.error)
+        self.tell(message + " (pythonfmu returns fmi2OK for this call; the refusal is "
+                  "logged with status Error)")
 
     # -- values ------------------------------------------------------------------------------
     # pythonfmu's own get/set methods test the type of every variable at every call;
@@ -318,8 +331,7 @@ class CheckedSlave(Fmi2Slave):
         try:
             fields = self._checked_state(state)
         except (ValueError, TypeError, KeyError) as exc:
-            self.log(f"{self.instance_name}: setFMUstate refused: {exc}; the instance keeps "
-                     "its state", Fmi2Status.error)
+            self.refuse(f"setFMUstate refused: {exc}; the instance keeps its state")
             return
         for name, value in fields.items():
             setattr(self, name, value)

@@ -14,7 +14,6 @@ import itertools
 import math
 import os
 import shutil
-import tempfile
 from collections import deque
 from collections.abc import Callable, Mapping, Sequence
 from ctypes import (
@@ -33,7 +32,7 @@ from typing import Any
 
 from papwc.errors import FmuError
 
-__all__ = ["FmuSlave"]
+__all__ = ["FmuSlave", "check_fmu"]
 
 #: fmi2Status values.
 _STATUS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
@@ -41,6 +40,27 @@ _STATUS = ("OK", "Warning", "Discard", "Error", "Fatal", "Pending")
 _LOG_KEPT = 200
 
 _C_TYPES = {"Real": c_double, "Integer": c_int, "Enumeration": c_int, "Boolean": c_int}
+
+
+class _Log(deque):
+    """The kept log messages of an instance, and how many were ever logged (``count``)."""
+
+    def __init__(self) -> None:
+        super().__init__(maxlen=_LOG_KEPT)
+        self.count = 0
+
+    def append(self, text: str) -> None:
+        self.count += 1
+        super().append(text)
+
+    def since(self, count: int) -> list[str]:
+        """The messages logged after the ``count``-th (those still kept)."""
+        n = min(self.count - count, len(self))
+        return list(self)[len(self) - n:] if n > 0 else []
+
+
+def _refusals(messages: list[str]) -> list[str]:
+    return [m for m in messages if m.startswith(("[Error]", "[Fatal]"))]
 
 
 def _text(value: Any) -> str:
@@ -127,13 +147,16 @@ class FmuSlave:
         name: str = "plant",
         unzip_dir: str | os.PathLike | None = None,
         restart_input: str | None = None,
+        where: str | None = None,
     ) -> None:
-        from fmpy import extract, read_model_description
+        from papwc.master import archive
 
         self.name = name
         self.fmu_path = Path(fmu_path)
+        #: What opens every message about the file (the path, or an SSP's component).
+        self.where = where or f"FMU {str(self.fmu_path)!r}"
         self.values: list[Any] = []
-        self.log: deque[str] = deque(maxlen=_LOG_KEPT)
+        self.log: _Log = _Log()
         self.time = 0.0
         self._fmu = None
         self._snapshot = None
@@ -141,45 +164,42 @@ class FmuSlave:
         self._watched: list[str] = []
         self._owns_dir = False
         self._fatal = False
-        if not self.fmu_path.is_file():
-            raise FmuError(f"FMU file {str(self.fmu_path)!r} does not exist")
-        try:
-            self.md = read_model_description(str(self.fmu_path))
-        except Exception as exc:  # fmpy raises plain Exceptions for broken files
-            raise FmuError(f"{self.fmu_path}: cannot read modelDescription.xml: {exc}") from exc
-        if self.md.coSimulation is None:
-            raise FmuError(f"{self.fmu_path}: not a Co-Simulation FMU")
-        self.vars = {v.name: v for v in self.md.modelVariables}
+        self._initialized_once = False
         self.restart_input = restart_input
         self._restarts = 0
-        if restart_input is not None and (
-                restart_input not in self.vars or self.vars[restart_input].causality != "input"
-                or self.vars[restart_input].type != "Integer"):
-            raise FmuError(f"{self.fmu_path}: has no Integer input {restart_input!r}")
+        # Everything that opens the file goes through papwc.master.archive: a
+        # failure is one FmuError naming the file, and the unpacked copy is removed.
         if unzip_dir is None:
-            unzip_dir = tempfile.mkdtemp(prefix="papwcfmu")
+            if not self.fmu_path.is_file():
+                raise FmuError(f"FMU file {str(self.fmu_path)!r} does not exist")
+            unzip_dir = archive.unpack(self.fmu_path, self.where)
             self._owns_dir = True
-            try:
-                extract(str(self.fmu_path), unzipdir=unzip_dir)
-            except Exception as exc:  # a broken archive
-                shutil.rmtree(unzip_dir, ignore_errors=True)
-                raise FmuError(f"{self.fmu_path}: cannot extract: {exc}") from exc
         self.unzip_dir = str(unzip_dir)
-        self._can_state = bool(self.md.coSimulation.canGetAndSetFMUstate)
-        self._refresh: Callable[[], None] = lambda: None
-        self._real_read: tuple[Any, ...] | None = None
-        #: What a Real input was last set to, by name: [value, sign of value] or [NaN]
-        #: (not known); a setter of that input alone sends a value only if it differs.
-        self._held: dict[str, list[float]] = {}
-        self._load()
-        self._instantiate()
+        try:
+            self.md = archive.read_model_description(self.unzip_dir, self.where)
+            self.vars = {v.name: v for v in self.md.modelVariables}
+            if restart_input is not None and (
+                    restart_input not in self.vars
+                    or self.vars[restart_input].causality != "input"
+                    or self.vars[restart_input].type != "Integer"):
+                raise FmuError(f"{self.where}: has no Integer input {restart_input!r}")
+            self._can_state = bool(self.md.coSimulation.canGetAndSetFMUstate)
+            self._refresh: Callable[[], None] = lambda: None
+            self._real_read: tuple[Any, ...] | None = None
+            #: What a Real input was last set to, by name: [value, sign of value] or [NaN]
+            #: (not known); a setter of that input alone sends a value only if it differs.
+            self._held: dict[str, list[float]] = {}
+            self._load()
+            self._instantiate()
+        except BaseException:
+            self.close()
+            raise
 
     # -- the FMI library -------------------------------------------------------------------
     def _load(self) -> None:
         """Load the library, make the callbacks, bind the functions called at every step."""
         from fmpy.fmi1 import calloc, free
         from fmpy.fmi2 import (
-            FMU2Slave,
             fmi2CallbackAllocateMemoryTYPE,
             fmi2CallbackFreeMemoryTYPE,
             fmi2CallbackFunctions,
@@ -197,12 +217,9 @@ class FmuSlave:
         # The FMU keeps a pointer to this structure until fmi2FreeInstance.
         self._callbacks = callbacks
         self._logger = log_message
-        self._fmu = FMU2Slave(
-            guid=self.md.guid,
-            unzipDirectory=self.unzip_dir,
-            modelIdentifier=self.md.coSimulation.modelIdentifier,
-            instanceName=self.name,
-        )
+        from papwc.master.archive import load_library
+
+        self._fmu = load_library(self.md, self.unzip_dir, self.name, self.where)
         #: The instance (fmi2Component); the step functions hold this object, so a
         #: new instance only changes its value.
         self._c = c_void_p(None)
@@ -260,7 +277,7 @@ class FmuSlave:
         """Parameters and input start values, applied at every (re)initialization."""
         for name in values:
             if name not in self.vars:
-                raise FmuError(f"{self.fmu_path}: has no variable {name!r}")
+                raise FmuError(f"{self.where}: has no variable {name!r}")
         self._start.update(values)
         self._free_snapshot()
 
@@ -273,6 +290,19 @@ class FmuSlave:
             held[:] = [math.nan]
 
     def _set_now(self, values: Mapping[str, Any]) -> None:
+        """Set ``values`` now; FmuError if the FMU logs an Error or Fatal while doing it.
+
+        (pythonfmu's FMUs return fmi2OK for a refused set; the refusal is in their log.)
+        """
+        before = self.log.count
+        self._set_values(values)
+        refused = _refusals(self.log.since(before))
+        if refused:
+            names = ", ".join(values)
+            raise FmuError(f"{self.name}: setting {names} at t = {self.time!r} s was refused: "
+                           + "; ".join(refused))
+
+    def _set_values(self, values: Mapping[str, Any]) -> None:
         self._forget_inputs()
         for name, value in values.items():
             var = self.vars[name]
@@ -291,9 +321,9 @@ class FmuSlave:
         """Read ``names`` into :attr:`values` after each step; return their indexes."""
         for name in names:
             if name not in self.vars:
-                raise FmuError(f"{self.fmu_path}: has no variable {name!r}")
+                raise FmuError(f"{self.where}: has no variable {name!r}")
             if self.vars[name].type not in _C_TYPES:
-                raise FmuError(f"{self.fmu_path}: variable {name!r} of type "
+                raise FmuError(f"{self.where}: variable {name!r} of type "
                                f"{self.vars[name].type} cannot be watched")
             if name not in self._watched:
                 self._watched.append(name)
@@ -342,9 +372,9 @@ class FmuSlave:
         kinds = set()
         for name in names:
             if name not in self.vars:
-                raise FmuError(f"{self.fmu_path}: has no variable {name!r}")
+                raise FmuError(f"{self.where}: has no variable {name!r}")
             if self.vars[name].causality != "input":
-                raise FmuError(f"{self.fmu_path}: variable {name!r} is not an input")
+                raise FmuError(f"{self.where}: variable {name!r} is not an input")
             kinds.add(self.vars[name].type)
         comp, check = self._c, self._check
         # Watched inputs show the value last set (watch them before asking for the setter).
@@ -405,16 +435,23 @@ class FmuSlave:
             exitInitializationMode (FrictionPlant.fmu and PulseController.fmu
             refuse invalid parameters that way).
         """
+        if self._initialized_once:
+            # FMI 2.0 initializes an instance once: a new one takes the start values (an
+            # initialized one refuses parameters, which pythonfmu's FMUs only log).
+            self._free_snapshot()
+            self._call("fmi2FreeInstance",
+                       lambda: self._fmu.fmi2FreeInstance(self._fmu.component))
+            self._instantiate()
+        self._initialized_once = True
         self.time = float(start_time)
         self._forget_inputs()
         self._call("fmi2SetupExperiment", lambda: self._fmu.setupExperiment(
             startTime=start_time))
         self._set_now(self._start)
         self._call("fmi2EnterInitializationMode", self._fmu.enterInitializationMode)
-        n_log = len(self.log)
+        before = self.log.count
         self._call("fmi2ExitInitializationMode", self._fmu.exitInitializationMode)
-        new = list(self.log)[n_log:] if n_log < _LOG_KEPT else list(self.log)
-        refused = [m for m in new if m.startswith(("[Error]", "[Fatal]"))]
+        refused = _refusals(self.log.since(before))
         if refused:
             raise FmuError(f"{self.name}: fmi2ExitInitializationMode at t = {self.time!r} s "
                            "refused the parameters: " + "; ".join(refused))
@@ -440,11 +477,14 @@ class FmuSlave:
             return
         if self._snapshot is not None:
             self.time = float(start_time)
+            before = self.log.count
             self._call("fmi2SetFMUstate", lambda: self._fmu.setFMUstate(self._snapshot))
+            refused = _refusals(self.log.since(before))
+            if refused:
+                raise FmuError(f"{self.name}: fmi2SetFMUstate at t = {self.time!r} s was "
+                               "refused: " + "; ".join(refused))
             self._refresh()
             return
-        self._call("fmi2FreeInstance", lambda: self._fmu.fmi2FreeInstance(self._fmu.component))
-        self._instantiate()
         self.initialize(start_time)
 
     def do_step(self, t: float, h: float) -> None:
@@ -503,3 +543,14 @@ class FmuSlave:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def check_fmu(fmu_path: str | os.PathLike, where: str | None = None) -> Any:
+    """Open ``fmu_path`` as the master would (unpack, read, load, instantiate), then close it.
+
+    Returns its model description. A command given an FMU calls this before
+    any work starts, so that an FMU that cannot be used is refused once, in one
+    line (:class:`~papwc.errors.FmuError`), with nothing left unpacked.
+    """
+    with FmuSlave(fmu_path, name="check", where=where) as slave:
+        return slave.md

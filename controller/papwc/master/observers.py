@@ -9,6 +9,7 @@ step fails and ``finished`` at the end of a run.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
 from papwc.master.slave import Slave
@@ -173,12 +174,17 @@ class VariableObserver:
     ----------
     variables : sequence of (Slave, str)
         The slave and the name of each variable recorded, in column order.
+    sink : callable, optional
+        Called with each row instead of keeping it in ``rows``.
     """
 
-    def __init__(self, variables: list[tuple[Slave, str]]) -> None:
+    def __init__(self, variables: list[tuple[Slave, str]],
+                 sink: Callable[[list], None] | None = None) -> None:
         self.variables = list(variables)
         self.rows: list[list] = []
         self._reads: list[tuple[Slave, list[int]]] = []
+        #: Given, each row goes to it instead of into ``rows`` (a stream; none is kept).
+        self.sink = sink
 
     def setup(self, execution: Execution) -> None:
         slaves: dict[int, tuple[Slave, list[str]]] = {}
@@ -189,7 +195,11 @@ class VariableObserver:
         self._columns = [(slave, indexes[id(slave)][name]) for slave, name in self.variables]
 
     def _record(self, t: float) -> None:
-        self.rows.append([t, *[slave.values[i] for slave, i in self._columns]])
+        row = [t, *[slave.values[i] for slave, i in self._columns]]
+        if self.sink is None:
+            self.rows.append(row)
+        else:
+            self.sink(row)
 
     def initialized(self, t: float) -> None:
         self.rows.clear()

@@ -23,15 +23,15 @@ SSD element. :func:`papwc.master.ssp.run_ssp` runs what it returns.
 
 from __future__ import annotations
 
-import io
+import math
 import os
 import xml.etree.ElementTree as ET
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 
 from papwc.errors import SspError
+from papwc.master import archive as door
 
 __all__ = ["SspArchive", "SspBinding", "SspComponent", "SspConnection", "SspSystem", "read_ssp"]
 
@@ -45,8 +45,10 @@ _NS = {
 _SSD = "SystemStructure.ssd"
 _FMU_TYPE = "application/x-fmu-sharedlibrary"
 _TYPES = ("Real", "Integer", "Boolean", "String")
-#: Largest archive member read (FMUs and SSD), bytes.
-MAX_MEMBER_BYTES = 1 << 30
+#: Largest FMU read from an SSP archive, bytes (an SSD or SSV: door.MAX_XML_BYTES).
+MAX_MEMBER_BYTES = door.MAX_UNPACKED_BYTES
+#: Most components of one system.
+MAX_COMPONENTS = 256
 
 
 @dataclass(frozen=True)
@@ -80,6 +82,11 @@ class SspComponent:
     element: str
     variables: dict[str, tuple[str, str]] = field(default_factory=dict)
     start_values: dict[str, Any] = field(default_factory=dict)
+    #: What its FMU unpacks to, bytes.
+    unpacked_bytes: int = 0
+    #: (min, max, unit) of each Integer and Real variable (an Integer's at most
+    #: the range of a 32-bit fmi2Integer).
+    ranges: dict[str, tuple[float, float, str]] = field(default_factory=dict)
 
 
 @dataclass
@@ -121,6 +128,20 @@ def _float(text: str | None, where: str, what: str) -> float:
     return value
 
 
+#: Largest start or stop time of a DefaultExperiment, s (about 31.7 years): the
+#: difference of two such times and its quotient by a step stay finite.
+MAX_TIME = 1e9
+
+
+def _time(text: str | None, where: str, what: str) -> float:
+    """A DefaultExperiment time: a finite number within +-MAX_TIME s."""
+    value = _float(text, where, what)
+    if not -MAX_TIME <= value <= MAX_TIME:
+        raise SspError(f"{where}: {what} = {text!r} s: must be a finite number within "
+                       f"-{MAX_TIME:g}..{MAX_TIME:g} s")
+    return value
+
+
 def _value(typed: ET.Element, where: str) -> tuple[str, Any]:
     """The SSP type and the value of an ``ssv:Real``/``Integer``/``Boolean``/``String``."""
     kind = typed.tag.rsplit("}", 1)[-1]
@@ -145,16 +166,13 @@ def _value(typed: ET.Element, where: str) -> tuple[str, Any]:
 
 
 class SspArchive:
-    """The members of an SSP archive, read with bounds."""
+    """The members of an SSP archive, read through :mod:`papwc.master.archive` (bounded)."""
 
     def __init__(self, path: Path) -> None:
         self.path = path
         if not path.is_file():
             raise SspError(f"{path}: no such SSP file")
-        try:
-            self.zip = zipfile.ZipFile(path)
-        except (OSError, zipfile.BadZipFile) as exc:
-            raise SspError(f"{path}: not an SSP archive (a zip file): {exc}") from exc
+        self.zip = door.open_zip(path, str(path), SspError, what="SSP archive")
         self.names = {info.filename: info for info in self.zip.infolist()}
 
     def member(self, name: str) -> str | None:
@@ -162,36 +180,57 @@ class SspArchive:
         clean = str(PurePosixPath(name.removeprefix("./")))
         return clean if clean in self.names else None
 
-    def read(self, name: str, where: str) -> bytes:
+    def read(self, name: str, where: str, limit: int = door.MAX_XML_BYTES) -> bytes:
         """Member ``name``'s bytes (``where`` names the SSD element that asks for it)."""
-        info = self.names[name]
-        if info.file_size > MAX_MEMBER_BYTES:
-            raise SspError(f"{where}: {name} is {info.file_size} bytes; at most "
-                           f"{MAX_MEMBER_BYTES} are read")
-        try:
-            return self.zip.read(name)
-        except (OSError, zipfile.BadZipFile, RuntimeError) as exc:
-            raise SspError(f"{self.path}: cannot read {name}: {exc}") from exc
+        return door.read_member(self.zip, name, where, SspError, limit)
+
+    def close(self) -> None:
+        """Close the archive file."""
+        self.zip.close()
 
 
-def _model_variables(data: bytes, where: str) -> dict[str, tuple[str, str]]:
-    """name -> (causality, type) of an FMI 2.0 CS FMU given as bytes."""
+#: SSP types of the FMI 2.0 types with a range: type -> (lowest, highest) of fmi2Integer.
+INT_RANGE = (-(2**31), 2**31 - 1)
+
+
+def _model_variables(data: bytes, where: str) -> tuple[dict[str, tuple[str, str]], int,
+                                                       dict[str, tuple[float, float, str]]]:
+    """Of an FMI 2.0 CS FMU given as bytes: name -> (causality, type), what it unpacks to,
+    and name -> (min, max) of its Integer variables."""
+    with door.open_zip(data, where, SspError) as fmu:
+        unpacked = door.unpacked_bytes(fmu)
+        text = door.read_member(fmu, "modelDescription.xml", where, SspError)
     try:
-        with zipfile.ZipFile(io.BytesIO(data)) as fmu:
-            root = ET.fromstring(fmu.read("modelDescription.xml"))
-    except (KeyError, zipfile.BadZipFile, ET.ParseError, OSError) as exc:
-        raise SspError(f"{where}: not an FMU with a readable modelDescription.xml: {exc}") from exc
+        root = ET.fromstring(text)
+    except ET.ParseError as exc:
+        raise SspError(f"{where}: modelDescription.xml is not well-formed XML: {exc}") from None
     if root.get("fmiVersion") != "2.0":
         raise SspError(f"{where}: fmiVersion = {root.get('fmiVersion')!r}; only FMI 2.0 FMUs "
                        "are supported")
     if root.find("CoSimulation") is None:
         raise SspError(f"{where}: not a Co-Simulation FMU")
-    out = {}
+    out, ranges = {}, {}
     for sv in root.iter("ScalarVariable"):
         typed = next((c for c in sv if c.tag in (*_TYPES, "Enumeration")), None)
         typ = "Integer" if typed is None or typed.tag == "Enumeration" else typed.tag
-        out[sv.get("name")] = (sv.get("causality", "local"), typ)
-    return out
+        name = sv.get("name")
+        out[name] = (sv.get("causality", "local"), typ)
+        if typed is not None and typ in ("Integer", "Real"):
+            low = float(INT_RANGE[0]) if typ == "Integer" else -float("inf")
+            high = float(INT_RANGE[1]) if typ == "Integer" else float("inf")
+            for key, default in (("min", low), ("max", high)):
+                try:
+                    value = float(typed.get(key, default))
+                except ValueError:
+                    value = default
+                if key == "min":
+                    low = value
+                else:
+                    high = value
+            if typ == "Integer":  # what an fmi2Integer holds, whatever is declared
+                low, high = max(low, INT_RANGE[0]), min(high, INT_RANGE[1])
+            ranges[name] = (low, high, typed.get("unit", ""))
+    return out, unpacked, ranges
 
 
 def _bindings(archive: SspArchive, parent: ET.Element, where: str) -> list[tuple[str, ET.Element]]:
@@ -244,7 +283,23 @@ def _bind(component: SspComponent, variable: str, typed: ET.Element, where: str)
                        "a binding sets parameters and inputs")
     if kind != typ and not (kind == "Integer" and typ == "Real"):
         raise SspError(f"{where}: ssv:{kind} bound to {component.name}.{variable}, a {typ}")
+    if typ in ("Integer", "Real"):
+        low, high, unit = component.ranges.get(variable, (
+            (float(INT_RANGE[0]), float(INT_RANGE[1]), "") if typ == "Integer"
+            else (-math.inf, math.inf, "")))
+        number = float(value) if typ == "Real" else value
+        if not low <= number <= high:
+            what = ("an FMI 2.0 Integer" if (low, high) == tuple(map(float, INT_RANGE))
+                    else "the FMU's declared range")
+            unit = f" {unit}" if unit else ""
+            raise SspError(f"{where}: {component.name}.{variable} = {value!r}{unit}: must "
+                           f"satisfy {_bound(low, typ)} <= {variable} <= {_bound(high, typ)}{unit} "
+                           f"({what})")
     component.start_values[variable] = float(value) if typ == "Real" else value
+
+
+def _bound(x: float, typ: str) -> str:
+    return str(int(x)) if typ == "Integer" else f"{x:g}"
 
 
 def read_ssp(path: str | os.PathLike) -> SspSystem:
@@ -257,6 +312,13 @@ def read_ssp(path: str | os.PathLike) -> SspSystem:
     """
     path = Path(path)
     archive = SspArchive(path)
+    try:
+        return _read_system(path, archive)
+    finally:
+        archive.close()
+
+
+def _read_system(path: Path, archive: SspArchive) -> SspSystem:
     where = f"{path}: {_SSD}"
     if _SSD not in archive.names:
         raise SspError(f"{path}: the archive has no {_SSD}")
@@ -270,7 +332,13 @@ def read_ssp(path: str | os.PathLike) -> SspSystem:
     if system is None:
         raise SspError(f"{where}: no ssd:System")
     components: dict[str, SspComponent] = {}
-    for element in system.findall("ssd:Elements/*", _NS):
+    elements = system.findall("ssd:Elements/*", _NS)
+    if len(elements) > MAX_COMPONENTS:
+        raise SspError(f"{where}: {len(elements)} components; at most {MAX_COMPONENTS}")
+    #: What each FMU of the archive holds, read once.
+    fmus: dict[str, tuple[dict, int, dict]] = {}
+    unpacked = 0
+    for element in elements:
         here = f"{where} {_tag(element)}"
         if element.tag != f"{{{_NS['ssd']}}}Component":
             raise SspError(f"{here}: only ssd:Component elements are supported (no nested "
@@ -287,7 +355,16 @@ def read_ssp(path: str | os.PathLike) -> SspSystem:
         if member is None:
             raise SspError(f"{here}: the archive has no {source}")
         component = SspComponent(name, member, _tag(element))
-        component.variables = _model_variables(archive.read(member, here), f"{here}: {member}")
+        if member not in fmus:
+            fmus[member] = _model_variables(archive.read(member, here, MAX_MEMBER_BYTES),
+                                            f"{here}: {member}")
+        variables, component.unpacked_bytes, ranges = fmus[member]
+        component.variables, component.ranges = dict(variables), ranges
+        unpacked += component.unpacked_bytes
+        if unpacked > door.MAX_UNPACKED_BYTES:
+            raise SspError(f"{here}: the FMUs of the components up to this one unpack to "
+                           f"{door.size_text(unpacked)}; at most "
+                           f"{door.size_text(door.MAX_UNPACKED_BYTES)} for one system")
         for connector in element.findall("ssd:Connectors/ssd:Connector", _NS):
             cname = connector.get("name")
             at = f"{here} {_tag(connector)}"
@@ -343,9 +420,9 @@ def read_ssp(path: str | os.PathLike) -> SspSystem:
     if experiment is not None:
         here = f"{where} <ssd:DefaultExperiment>"
         if experiment.get("startTime") is not None:
-            start_time = _float(experiment.get("startTime"), here, "startTime")
+            start_time = _time(experiment.get("startTime"), here, "startTime")
         if experiment.get("stopTime") is not None:
-            stop_time = _float(experiment.get("stopTime"), here, "stopTime")
+            stop_time = _time(experiment.get("stopTime"), here, "stopTime")
         osp = experiment.find(".//osp:FixedStepAlgorithm", _NS)
         if osp is not None and osp.get("baseStepSize") is not None:
             step = _float(osp.get("baseStepSize"), f"{here} <osp:FixedStepAlgorithm>",

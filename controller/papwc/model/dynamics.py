@@ -138,6 +138,9 @@ class Plant:
         self.encoder = EncoderNoise(p["noise_std"], seed) if p["noise_std"] > 0.0 else None
         self.exact = not (self.stribeck or self.lugre or self.ripple or self.lag
                           or self.flexible)
+        #: (integrator steps, stick-slip events) of the last integrated communication step:
+        #: the work a step took, which the model layer's ranges and rules bound.
+        self.work = (0, 0)
         self.is_eq1 = self.exact and self.stiction is None and self.encoder is None
         self._layout()
         if self.is_eq1:
@@ -430,6 +433,7 @@ class Plant:
         t = 0.0
         h = self.h_next if self.h_next > 0.0 else h_total / 8.0
         steps = events = 0
+        self.work = (0, 0)
         while t < h_total:
             if s == 0.0 and not lugre:
                 if frozen:
@@ -462,6 +466,7 @@ class Plant:
                 continue
             # An event inside the step: recompute the state where it happens.
             events += 1
+            self.work = (steps, events)
             if events > MAX_EVENTS:
                 return (f"more than {MAX_EVENTS} stick-slip events in one communication "
                         "step")
@@ -472,6 +477,7 @@ class Plant:
             s = self._switch(y, u, s)
         self._unpack(y)
         self.h_next = h
+        self.work = (steps, events)
         return None
 
     def _stuck_lag(self, y: list[float], u: float, remaining: float) -> float | None:

@@ -14,10 +14,15 @@ from typing import Any
 from .variables import Constraint, Variable, by_name, problems
 
 __all__ = [
+    "ACCELERATION_MAX",
+    "DAMPING_RATE_MAX",
     "DEVIATION_CONSTRAINTS",
     "DEVIATION_PARAMETERS",
+    "INTEGRATED",
+    "INTEGRATED_OFF_OR_AT_LEAST",
     "INITIAL_STATE",
     "MODE_FREQUENCY_MAX",
+    "OFF_OR_AT_LEAST",
     "PLANT_CONSTRAINTS",
     "PLANT_DEFAULTS",
     "PLANT_INPUTS",
@@ -189,8 +194,98 @@ def _flexible_mode_resolvable(values: Mapping[str, Any]) -> tuple[str, str] | No
     return None
 
 
+#: Smallest value other than 0 of a parameter whose 0 means "none": below it the effect is
+#: nil at the plant's steps while its arithmetic overflows or takes unbounded time
+#: (x_resolution = 5e-324 overflowed x/x_resolution; tau_u = 5e-324 and v_s = 1e-12 with
+#: delta_s = 10 made the integrator's step fall below 1e-18 s).
+OFF_OR_AT_LEAST: dict[str, float] = {
+    "x_resolution": 1e-12,  # m: a picometre encoder
+    "v_s": 1e-6,  # m/s
+    "tau_u": 1e-6,  # s
+    "sigma_0": 1.0,  # N/m
+    "sigma_1": 1e-6,  # N.s/m
+    "ripple": 1e-6,  # 1
+    "f_s_spread": 1e-9,  # 1
+    "m_d": 1e-3,  # kg
+    "noise_std": 1e-12,  # m
+    "c_t": 1e-6,  # N.s/m
+}
+#: The same for the friction and damping of Eq. (1) when the plant is integrated (with a
+#: deviation of :data:`INTEGRATED`): a tiny friction force made the mass stop and break
+#: away thousands of times in one step (Eq. (1) alone has a closed form, cheap for any).
+INTEGRATED_OFF_OR_AT_LEAST: dict[str, float] = {"f_c": 1e-6, "f_s": 1e-6, "c": 1e-6}
+
+
+def _off_or_at_least(name: str, low: float, integrated: bool = False) -> Constraint:
+    unit = _BY_NAME_ALL[name].unit_suffix
+
+    def check(values: Mapping[str, Any]) -> tuple[str, str] | None:
+        value = values[name]
+        which = _integrated(values) if integrated else ""
+        if value != 0.0 and abs(value) < low and (which or not integrated):
+            when = f" when the plant is integrated ({which} = {values[which]!r} > 0)" if (
+                which) else ""
+            return name, (f"{name} = {value!r}{unit}: must be 0 (none) or >= {low:g}{unit}"
+                          f"{when} (a smaller one has no effect at the plant's steps, and "
+                          "makes them overflow or take unbounded time)")
+        return None
+
+    return Constraint((name, *INTEGRATED) if integrated else (name,), check)
+
+
+_BY_NAME_ALL = by_name(PLANT_PARAMETERS)
+
+#: Deviations that have no closed form: with any of them the plant's state is integrated
+#: (see papwc.model.dynamics), at a cost that the two rules below bound.
+INTEGRATED = ("v_s", "sigma_0", "ripple", "tau_u", "m_d")
+
+#: Largest viscous damping rate of the mass, c/m, 1/s (a time constant of 0.1 ms), with an
+#: integrated deviation: beyond it the mass stopped and broke away again thousands of times
+#: in one step.
+DAMPING_RATE_MAX = 1e4
+#: Largest acceleration the breakaway force gives the mass, f_s/m, m/s^2 (1000 g), with an
+#: integrated deviation: beyond it a step of a tiny mass under a large force took seconds or
+#: was refused.
+ACCELERATION_MAX = 1e4
+
+
+def _integrated(values: Mapping[str, Any]) -> str:
+    """The first integrated deviation present ("" if none)."""
+    return next((name for name in INTEGRATED if values[name] > 0.0), "")
+
+
+def _damping_bounded(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    m, c, which = values["m"], values["c"], _integrated(values)
+    if which and c / m > DAMPING_RATE_MAX:
+        return "c", (f"c = {c!r} N.s/m: the damping rate c/m = {c / m:.6g} 1/s (m = {m!r} kg) "
+                     f"must be <= {DAMPING_RATE_MAX:g} 1/s when the plant is integrated "
+                     f"({which} = {values[which]!r} > 0)")
+    m_d, c_t = values["m_d"], values["c_t"]
+    if m_d > 0.0 and c_t * (1.0 / m + 1.0 / m_d) > DAMPING_RATE_MAX:
+        rate = c_t * (1.0 / m + 1.0 / m_d)
+        return "c_t", (f"c_t = {c_t!r} N.s/m: the coupling's damping rate c_t*(1/m + 1/m_d) = "
+                       f"{rate:.6g} 1/s (m = {m!r} kg, m_d = {m_d!r} kg) must be <= "
+                       f"{DAMPING_RATE_MAX:g} 1/s")
+    return None
+
+
+def _acceleration_bounded(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    m, f_s, which = values["m"], values["f_s"], _integrated(values)
+    if which and f_s / m > ACCELERATION_MAX:
+        return "m", (f"m = {m!r} kg: the breakaway force gives the mass f_s/m = "
+                     f"{f_s / m:.6g} m/s^2 (f_s = {f_s!r} N); must be <= "
+                     f"{ACCELERATION_MAX:g} m/s^2 when the plant is integrated ({which} = "
+                     f"{values[which]!r} > 0)")
+    return None
+
+
 #: Rules between the deviation parameters and the others.
 DEVIATION_CONSTRAINTS: tuple[Constraint, ...] = (
+    *(_off_or_at_least(name, low) for name, low in OFF_OR_AT_LEAST.items()),
+    *(_off_or_at_least(name, low, integrated=True)
+      for name, low in INTEGRATED_OFF_OR_AT_LEAST.items()),
+    Constraint(("m", "f_s", *INTEGRATED), _acceleration_bounded),
+    Constraint(("m", "c", "c_t", *INTEGRATED), _damping_bounded),
     Constraint(("f_c", "f_s", "f_s_spread"), _lowest_breakaway_at_least_f_c),
     Constraint(("f_c", "sigma_0"), _lugre_needs_sliding_friction),
     Constraint(("f_s_spread", "sigma_0"), _random_stiction_needs_sticking),

@@ -1,0 +1,110 @@
+"""The weaker items of issue 27, each through the command line: the resume line after an
+interrupted battery runs verbatim (it keeps --max-steps), SIGTERM stops a battery as Ctrl-C
+does (no worker traceback), ``papwc build --controller`` is 1-based in its refusals too, and
+``reproduce --scenario`` of a scenario without PWC or PAPWC claims only the figures it
+wrote."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from harness import GOOD
+
+from papwc.cli import main
+
+PROJECT = Path(__file__).resolve().parents[2]
+BATTERY = """\
+name = "sig"
+[maneuver]
+x_ref = 0.01
+T = 0.01
+duration = 30.0
+iterations = 20
+[[controller]]
+kind = "papwc"
+t_p_max = 0.03
+K_c = 0.8
+[sweep]
+"plant.m" = [100.0, 110.0, 120.0, 130.0, 140.0, 150.0, 160.0, 170.0]
+"""
+
+
+def test_the_resume_line_keeps_the_limits_it_needs(tmp_path, friction_plant_fmu, capsys,
+                                                   monkeypatch) -> None:
+    """Issue 27: the resume line dropped --max-steps, so run verbatim it was refused."""
+    import papwc.battery
+    from papwc.battery.run import BatteryInterrupted
+
+    def interrupted(*args, **kwargs):
+        raise BatteryInterrupted(1, 8, tmp_path / "out" / "journal.jsonl")
+
+    monkeypatch.setattr(papwc.battery, "run_battery", interrupted)
+    battery = tmp_path / "b.toml"
+    battery.write_text(BATTERY)
+    assert main(["battery", str(battery), "--out", str(tmp_path / "out"), "--fmu",
+                 str(friction_plant_fmu), "--max-steps", "5000000", "--max-runs", "50",
+                 "--workers", "1", "--quiet"]) == 130
+    err = capsys.readouterr().err
+    line = err.split("to finish, run: ")[1].splitlines()[0]
+    assert line == (f"papwc battery {battery} --out {tmp_path / 'out'} --fmu "
+                    f"{friction_plant_fmu} --workers 1 --max-runs 50 --max-steps 5000000 "
+                    "--quiet --resume")
+
+
+@pytest.mark.slow
+def test_sigterm_stops_a_battery_as_ctrl_c_does(tmp_path, friction_plant_fmu) -> None:
+    battery = tmp_path / "b.toml"
+    battery.write_text(BATTERY)
+    out = tmp_path / "out"
+    err_path = tmp_path / "err.txt"
+    with open(err_path, "w") as err:
+        process = subprocess.Popen(
+            [sys.executable, "-m", "papwc.cli", "battery", str(battery), "--out", str(out),
+             "--fmu", str(friction_plant_fmu), "--workers", "2", "--quiet"],
+            stdout=subprocess.DEVNULL, stderr=err,
+            env={**os.environ, "PYTHONPATH": str(PROJECT / "controller")})
+        journal = out / "journal.jsonl"
+        deadline = time.monotonic() + 120
+        while not (journal.is_file() and journal.read_text().count("\n") >= 2):
+            assert process.poll() is None and time.monotonic() < deadline
+            time.sleep(0.1)
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(60) == 143
+    time.sleep(2)  # a worker that outlived the battery would write now
+    text = err_path.read_text()
+    assert "Traceback" not in text, text
+    assert "papwc battery: terminated (SIGTERM): " in text and "--resume" in text
+    assert "runs are in the journal" in text
+
+
+@pytest.mark.parametrize("n", ["0", "5"])
+def test_build_controller_is_one_based_in_its_refusal(n, tmp_path, capsys) -> None:
+    out = tmp_path / "build"
+    assert main(["build", "--out", str(out), "--controller", n]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--controller {n}: " in err[0]
+    assert "has 4 [[controller]] table(s); give 1 to 4 (1-based)" in err[0]
+    assert not out.exists()  # refused before anything is built
+
+
+@pytest.mark.slow
+def test_reproduce_of_another_scenario_claims_only_the_figures_it_wrote(
+        tmp_path, friction_plant_fmu, capsys) -> None:
+    scenario = tmp_path / "exact_only.toml"
+    scenario.write_text(GOOD.replace('kind = "papwc"', 'kind = "exact"'))
+    out = tmp_path / "out"
+    assert main(["reproduce", "--out", str(out), "--scenario", str(scenario), "--fmu",
+                 str(friction_plant_fmu)]) == 0
+    wrote = next(line for line in capsys.readouterr().out.splitlines()
+                 if line.startswith("wrote "))
+    figures = sorted(p.name for p in out.glob("*.png"))
+    assert figures == ["fig1.png"]
+    assert wrote.startswith(f"wrote {out}/fig1.png, paper_numbers.csv")
+    assert "fig3" not in wrote and "fig9" not in wrote
+    assert "Figures: fig1.png (Eq. (3) and (4)); " in (out / "report.md").read_text()
