@@ -183,7 +183,7 @@ def test_fmu_controller_equals_the_python_controller_bit_for_bit(
         assert max(abs(u) for u in forces) == settings.f_p_max  # coarse, saturated
         assert Mode.COARSE in result.traces[0].column("mode")
         in_process = make_controller(settings, maneuver.T)
-        assert in_process.k_p == 20000.0 and in_process.f_p_floor == 120.0
+        assert in_process.seq.k_p == 20000.0 and in_process.f_p_floor == 120.0
 
 
 @pytest.mark.parametrize("variant", ["pwc", "papwc_inf", "exact"])

@@ -12,6 +12,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
+from papwc.controllers import OUTPUT_NAMES
 from papwc.master.slave import Slave
 from papwc.master.trace import Trace
 
@@ -47,8 +48,8 @@ class Observer(Protocol):
 
 #: Trace columns read from the plant at each communication point (state at t_k).
 _STATE = ("x", "v", "x_meas")
-#: Trace columns read from the controller after its sample at t_k.
-_CONTROLLER = ("mode", "pulses", "b_hat", "f_c_hat", "f_low", "outcome", "outcome_reason")
+#: Trace columns read from the controller after its sample at t_k: its outputs but u.
+_CONTROLLER = OUTPUT_NAMES
 
 
 class TraceObserver:
@@ -69,8 +70,8 @@ class TraceObserver:
     Parameters
     ----------
     plant, controller : Slave
-        The plant (variables x, v, x_meas) and the controller (u, mode,
-        pulses, b_hat, f_c_hat, f_low, outcome, outcome_reason), connected
+        The plant (variables x, v, x_meas) and the controller (the model layer's
+        CONTROLLER_OUTPUTS), connected
         ``controller.u -> plant.u``.
     label : str
         Controller label of the trace.
