@@ -117,7 +117,7 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
     assert {n for n, v in variables.items() if v.causality == "parameter"} == settings | {
         "T", "kind_code", "x_ref_offset"}
     assert {n for n, v in variables.items() if v.causality == "input"} == {
-        "x_meas", "x_ref", "maneuver"}
+        "x_meas", "x_ref", "maneuver", "x_d_meas"}
     outputs = {n for n, v in variables.items() if v.causality == "output"}
     assert outputs == {"u", "b_hat", "f_c_hat", "pulses", "mode", "f_low", "outcome",
                        "outcome_reason"}

@@ -171,6 +171,8 @@ class PhysicsSlave(_WatchedAttributes):
         self.params: dict[str, Any] = dict(PLANT_DEFAULTS)
         self.plant = Plant(self.params)
         self.x_meas = 0.0
+        self.x_d = 0.0
+        self.x_d_meas = 0.0
         self.u = 0.0
         self.stuck = True
         self.p = SimpleNamespace(**self.params)
@@ -183,7 +185,7 @@ class PhysicsSlave(_WatchedAttributes):
     def _path(self, name: str) -> str:
         if name in ("x", "v"):
             return f"plant.{name}"
-        return name if name in ("u", "x_meas", "stuck") else f"p.{name}"
+        return name if name in ("u", "x_meas", "stuck", "x_d", "x_d_meas") else f"p.{name}"
 
     @property
     def x(self) -> float:
@@ -204,8 +206,11 @@ class PhysicsSlave(_WatchedAttributes):
         self.plant.v = value
 
     def _update_outputs(self) -> None:
-        self.x_meas = self.plant.x_meas()
-        self.stuck = self.plant.v == 0.0
+        plant = self.plant
+        self.x_meas = plant.x_meas()
+        self.stuck = plant.v == 0.0
+        self.x_d = plant.x_d_now()
+        self.x_d_meas = plant.x_d_meas()
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
         """Parameters and input start values, applied at every (re)initialization."""
@@ -284,6 +289,7 @@ class ControllerSlave(_WatchedAttributes):
         self.controller = controller
         self.x_meas = 0.0
         self.x_ref = 0.0
+        self.x_d_meas = 0.0
         self.u = 0.0
         self._start: dict[str, float] = {}
         self.out = SimpleNamespace(**controller.estimates())
@@ -298,7 +304,7 @@ class ControllerSlave(_WatchedAttributes):
         return out
 
     def _path(self, name: str) -> str:
-        if name in ("x_meas", "x_ref", "u"):
+        if name in ("x_meas", "x_ref", "x_d_meas", "u"):
             return name
         return f"out.{name}"
 

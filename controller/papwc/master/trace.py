@@ -8,6 +8,8 @@ A trace holds named columns, one value per sample t_k = k*T (SI units):
 ``x``    position at t_k, m
 ``v``    velocity at t_k, m/s
 ``x_meas`` position the controller saw at t_k (encoder, noise), m
+``x_d``  motor (drive) position at t_k, m (``x`` on a rigid drive; NaN: the plant has none)
+``x_d_meas`` the motor encoder's reading at t_k, m (NaN: the plant has none)
 ``u``    force applied over [t_k, t_k+1], N (NaN in the last row)
 ``e``    error x_ref - x, m
 (then)   the controller's outputs after its sample at t_k, the model layer's
@@ -35,7 +37,7 @@ from papwc.output import atomic_open, format_value
 __all__ = ["TRACE_COLUMNS", "Trace", "summarize"]
 
 #: Columns of a trace, in the order of its CSV file.
-TRACE_COLUMNS = ("k", "t", "x", "v", "x_meas", "u", "e") + OUTPUT_NAMES
+TRACE_COLUMNS = ("k", "t", "x", "v", "x_meas", "x_d", "x_d_meas", "u", "e") + OUTPUT_NAMES
 
 
 @dataclass
