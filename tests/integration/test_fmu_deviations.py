@@ -31,8 +31,8 @@ from fmpy.validation import validate_fmu
 from papwc.controllers.settings import ControllerSettings
 from papwc.errors import FmuError
 from papwc.master import FmuSlave, Maneuver, PhysicsSlave, run_controller
-from papwc.model.plant import DEVIATION_PARAMETERS
 from papwc.model.effects.encoder import MOTOR_STREAM, EncoderNoise
+from papwc.model.plant import DEVIATION_PARAMETERS
 from papwc.model.stickslip import quantize, simulate
 
 T = 0.01
