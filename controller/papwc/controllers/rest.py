@@ -11,6 +11,15 @@ their sample-to-sample scatter (a moving mass drifts by more). With an ideal,
 noiseless encoder the readings at rest are equal, sigma stays 0 and the test is
 the one of rest_band and rest_samples.
 
+A machine whose slowest mode the controller is not told (``f_mode`` = 0; a told one is
+not looked for) still shows it
+when it rings: after a force the reading goes forward and then back (a mass under
+friction alone moves one way only). A force-free reading that has turned back by more
+than :data:`RING_LEG` and the band is *ringing seen*: the dwell becomes
+:data:`RING_PERIODS` periods of the ring (its period taken as the force-free samples
+until then, about three quarters of one), kept for the controller's life, and the
+controller shrinks its pulses (:class:`~.trust.TrustRegion`).
+
 While at rest the readings are averaged: :meth:`RestDetector.x_hat` is the mean
 of the readings since the rest began, whose uncertainty is ``sigma/sqrt(N)``.
 
@@ -24,7 +33,7 @@ from collections.abc import Mapping
 from typing import Any
 
 __all__ = ["BAND_SIGMAS", "NOISE_DRIFT", "NOISE_DWELL", "NOISE_MEMORY", "NOISE_WINDOW",
-           "RestDetector"]
+           "RING_LEG", "RING_PERIODS", "RestDetector"]
 
 #: Readings of the force-free window in which noise is looked for before any rest.
 NOISE_WINDOW = 16
@@ -36,6 +45,15 @@ BAND_SIGMAS = 6.0
 NOISE_DWELL = 5
 #: Rests over which the noise estimate is averaged (a running mean over at most this many).
 NOISE_MEMORY = 16
+#: How far a force-free reading must turn back to show ringing, m: beyond the noise of
+#: the encoders in use (0.4 um rms at most in the batteries) and beyond what LuGre
+#: bristles give back when the table stops (about f_s/sigma_0: 7.5 um at most over the
+#: ranges of realism_mc_lugre.toml).
+RING_LEG = 1e-5
+#: Dwell after ringing was seen, in periods of the ring (``MODE_PERIODS`` of the model layer).
+RING_PERIODS = 2.5
+#: Longest dwell learned from ringing, sample intervals.
+RING_DWELL_MAX = 1000
 
 
 class RestDetector:
@@ -76,12 +94,24 @@ class RestDetector:
         How often the force-free reading turned back.
     band, dwell : float, int
         The present test (derived from the settings and ``sigma2``).
+    ring_dwell : int
+        Dwell learned from ringing seen, sample intervals (0: none seen); kept across
+        maneuvers.
+    x_turn : float
+        Reading at the last turn of the force-free reading (or where it began), m.
+    legs : int
+        1 once the reading has turned back by more than ``RING_LEG`` and the band since
+        the last force (ringing seen), else 0.
+    since_force, since_turn : int
+        Force-free readings since the last force and since the last turn.
     """
 
     #: Names of the state (:meth:`state`), in order.
     FIELDS = ("sigma2", "noise_rests", "anchor", "lo", "hi", "sum", "sum2", "n", "look",
-              "ring", "ring_n", "dir", "turns")
-    _INTS = frozenset(("noise_rests", "n", "look", "ring_n", "turns"))
+              "ring", "ring_n", "dir", "turns", "ring_dwell", "x_turn", "legs", "since_force",
+              "since_turn")
+    _INTS = frozenset(("noise_rests", "n", "look", "ring_n", "turns", "ring_dwell", "legs",
+                       "since_force", "since_turn"))
 
     def __init__(self, rest_band: float, rest_samples: int, rest_auto: bool,
                  mode_samples: int) -> None:
@@ -91,6 +121,7 @@ class RestDetector:
         self.mode_samples = int(mode_samples)
         self.sigma2 = 0.0
         self.noise_rests = 0
+        self.ring_dwell = 0
         self.update_test()
         self.reset()
 
@@ -105,6 +136,10 @@ class RestDetector:
         self.ring_n = 0
         self.dir = 0.0
         self.turns = 0
+        self.x_turn = 0.0
+        self.legs = 0
+        self.since_force = 0
+        self.since_turn = 0
 
     # -- the test ----------------------------------------------------------------------
     def update_test(self) -> None:
@@ -115,6 +150,7 @@ class RestDetector:
                 band = max(band, BAND_SIGMAS * math.sqrt(self.sigma2))
                 dwell = max(dwell, NOISE_DWELL)
             dwell = max(dwell, self.mode_samples)
+        dwell = max(dwell, self.ring_dwell)
         self.band, self.dwell = band, dwell
 
     # -- runs of readings --------------------------------------------------------------
@@ -186,10 +222,18 @@ class RestDetector:
         """
         self.ring[self.ring_n % NOISE_WINDOW] = x
         self.ring_n += 1
+        self.since_force += 1
+        self.since_turn += 1
+        if self.since_force == 1:  # the first force-free reading: where it began
+            self.x_turn = x - dx
         if dx != 0.0:
             if dx * self.dir < 0.0:
                 self.turns += 1
+                self.x_turn = x - dx
+                self.since_turn = 1
             self.dir = dx
+            if self.turns and not self.legs and self.mode_samples == 0:
+                self._turned_back(x)
         if self.auto:
             if at_rest and self.turns >= 2 and self.sigma2 == 0.0:
                 # noise makes equal readings by chance, not many in a row
@@ -198,10 +242,32 @@ class RestDetector:
                 at_rest = self.quiet_window()
         return at_rest
 
+    def _turned_back(self, x: float) -> None:
+        """After a turn at x_turn, the reading x (m): ringing if it went back far enough."""
+        if abs(x - self.x_turn) <= max(RING_LEG, self.band):
+            return
+        self.legs = 1
+        if self.auto:
+            # forward, back and this far: about three quarters of a period after a force,
+            # at most four times the samples since the turn (after a long coast)
+            period = min(self.since_force, 4 * (self.since_turn + 1))
+            dwell = min(int(math.ceil(RING_PERIODS * max(period, 2))), RING_DWELL_MAX)
+            if dwell > self.ring_dwell:
+                self.ring_dwell = dwell
+                self.update_test()
+
+    def ringing(self) -> bool:
+        """Whether ringing was ever seen (a mode the settings did not name)."""
+        return self.ring_dwell > 0
+
     def forget_direction(self) -> None:
         """A force is applied: the force-free direction and its turns start anew."""
         self.dir = 0.0
         self.turns = 0
+        self.x_turn = 0.0
+        self.legs = 0
+        self.since_force = 0
+        self.since_turn = 0
 
     def quiet_window(self) -> bool:
         """The last force-free readings drift no more than their scatter: noise, at rest.

@@ -214,7 +214,11 @@ class PulseSequencer:
             self.pulse_left -= 1
             return self.f_pulse
         if mode != _M_COARSE or self.released:
+            legs = rest.legs
             at_rest = rest.force_free(x_meas, dx, at_rest)
+            if rest.legs > legs and self.guarded:
+                # ringing seen (rest detection): shrink the pulses from now on
+                self.trust.ringing()
         if mode == _M_PULSE:
             self.mode = mode = _M_WAIT
             self.waited = 0

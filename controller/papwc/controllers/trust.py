@@ -4,7 +4,9 @@ A control law plans a pulse to move at most ``trust*|e|``. The trust starts at t
 controller's ``trust0`` (1 for a kind that does not read that setting), doubles
 (up to 1) after a pulse that moved within ``TRUST_GOOD`` of its prediction and
 shrinks after one that moved more, so that a model fooled by noise or by a plant
-unlike it plans short pulses instead of long ones.
+unlike it plans short pulses instead of long ones. On a machine with a mode, named by
+``f_mode`` or seen ringing by the rest detection, the trust is at most
+``TRUST_FLEXIBLE``; each ringing seen multiplies it by ``TRUST_RING``.
 
 Standard library only (bundled into the controller FMU).
 """
@@ -15,7 +17,8 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["TRUST_FLEXIBLE", "TRUST_GOOD", "TRUST_GROWTH", "TRUST_MIN", "TrustRegion"]
+__all__ = ["TRUST_FLEXIBLE", "TRUST_GOOD", "TRUST_GROWTH", "TRUST_MIN", "TRUST_RING",
+           "TrustRegion"]
 
 #: Factor by which the trust region grows after a pulse that moved as predicted.
 TRUST_GROWTH = 2.0
@@ -23,6 +26,8 @@ TRUST_GROWTH = 2.0
 TRUST_GOOD = 0.2
 #: Smallest trust.
 TRUST_MIN = 0.05
+#: Factor on the trust at each ringing seen (never below TRUST_MIN): 0, the least trust.
+TRUST_RING = 0.0
 #: Largest trust on a machine with a known mode (f_mode > 0).
 TRUST_FLEXIBLE = 0.5
 
@@ -43,15 +48,18 @@ class TrustRegion:
     ----------
     value : float
         The learned trust (before the flexible cap).
+    ring : bool
+        Ringing was seen (a mode the settings did not name): the flexible cap applies.
     """
 
     #: Names of the state (:meth:`state`).
-    FIELDS = ("value",)
+    FIELDS = ("value", "ring")
 
     def __init__(self, initial: float, guarded: bool, flexible: bool) -> None:
         self.value = float(initial)
         self.guarded = bool(guarded)
         self.flexible = bool(flexible)
+        self.ring = False
 
     def __call__(self) -> float:
         """The trust in force now.
@@ -61,7 +69,12 @@ class TrustRegion:
         """
         if not self.guarded:
             return 1.0
-        return min(self.value, TRUST_FLEXIBLE) if self.flexible else self.value
+        return min(self.value, TRUST_FLEXIBLE) if self.flexible or self.ring else self.value
+
+    def ringing(self) -> None:
+        """The machine was seen ringing: the flexible cap from now on, and less trust."""
+        self.ring = True
+        self.value = max(TRUST_MIN, self.value * TRUST_RING)
 
     def judge(self, pred: float, d_along: float, noise: float) -> None:
         """Compare a pulse's displacement with its prediction; adjust the trust.
@@ -91,8 +104,9 @@ class TrustRegion:
 
     def state(self) -> dict[str, Any]:
         """The state by name."""
-        return {"value": self.value}
+        return {"value": self.value, "ring": int(self.ring)}
 
     def set_state(self, values: Mapping[str, Any]) -> None:
         """Restore a state returned by :meth:`state`."""
         self.value = float(values["value"])
+        self.ring = bool(values["ring"])
