@@ -37,6 +37,12 @@ With ``safeguards`` (the default) the sequencer stops a maneuver after
 leave the mass farther from the target than the maneuver started, even if it
 moves 1/trust times the prediction (:class:`~.trust.TrustRegion`).
 
+On a machine seen ringing (a mode the settings did not name, see :mod:`.rest`) a
+pulse's move depends on the ringing it meets more than on its height, so the pulses
+shrink: one sample each, and once a sample has moved more than half the runaway
+bound ``1.5*|e|`` (:data:`RING_MARGIN`), one sample at the law's lowest height ``f_low``
+(the smallest pulse it can make).
+
 Standard library only (bundled into the controller FMU).
 """
 
@@ -64,6 +70,10 @@ Z_DECIDE = 3.0
 #: A pulse is planned once the error is known to Z_ACT*s within the tolerance (or within
 #: the precision of the pulse).
 Z_ACT = 2.5
+#: The runaway bound's factor: a pulse should move at most RUNAWAY_FACTOR*|e| (plus a count).
+RUNAWAY_FACTOR = 1.5
+#: On a machine seen ringing, a sample may move this many times the most one has moved.
+RING_MARGIN = 2.0
 #: The error is never asked to be known better than this fraction of it before a pulse
 #: (a first move need not land closer than the next can correct).
 PRECISION_MIN = 0.01
@@ -258,6 +268,8 @@ class PulseSequencer:
         self.trust.judge(self.pred, d_along, noise)
         law.learn(n, f_p, d)
         law.revision += 1
+        if n == 1 and self.trust.ring:
+            self.trust.d_one = max(self.trust.d_one, abs(d))
         self.n_pulse = 0
 
     def catch_up(self) -> None:
@@ -303,6 +315,8 @@ class PulseSequencer:
         n, f_p = law.plan_pulse(e)
         if f_p == 0.0 or not math.isfinite(f_p):
             return self.stop(self.refusal)
+        if self.guarded and self.trust.ring:
+            n, f_p = self._ringing_pulse(e, f_p)
         pred = law.predict(n, f_p)
         if self.guarded and math.isfinite(pred):
             # The pulse must not leave the mass farther than the maneuver started, even if
@@ -312,6 +326,15 @@ class PulseSequencer:
             if after > abs(self.e0) and after > abs(e):
                 return self.stop(Reason.NO_MOVE_HELPS)
         return self.fire(n, f_p, pred, x_hat)
+
+    def _ringing_pulse(self, e: float, f_p: float) -> tuple[int, float]:
+        """The pulse on a machine seen ringing: one sample; at ``f_low`` once a sample has
+        moved more than the runaway bound ``1.5*|e|`` over ``RING_MARGIN`` (N, signed)."""
+        f_low = self.law.f_low
+        if (RING_MARGIN * self.trust.d_one > RUNAWAY_FACTOR * abs(e)
+                and 0.0 < f_low < abs(f_p)):
+            f_p = math.copysign(f_low, f_p)
+        return 1, f_p
 
     def fire(self, n: int, f_p: float, pred: float, x_hat: float) -> float:
         """Start the pulse of n samples at f_p (N) predicted to move pred (m) from x_hat (m)."""

@@ -50,16 +50,19 @@ class TrustRegion:
         The learned trust (before the flexible cap).
     ring : bool
         Ringing was seen (a mode the settings did not name): the flexible cap applies.
+    d_one : float
+        Largest move of a one-sample pulse since ringing was seen, m (0: none yet).
     """
 
     #: Names of the state (:meth:`state`).
-    FIELDS = ("value", "ring")
+    FIELDS = ("value", "ring", "d_one")
 
     def __init__(self, initial: float, guarded: bool, flexible: bool) -> None:
         self.value = float(initial)
         self.guarded = bool(guarded)
         self.flexible = bool(flexible)
         self.ring = False
+        self.d_one = 0.0
 
     def __call__(self) -> float:
         """The trust in force now.
@@ -104,9 +107,10 @@ class TrustRegion:
 
     def state(self) -> dict[str, Any]:
         """The state by name."""
-        return {"value": self.value, "ring": int(self.ring)}
+        return {"value": self.value, "ring": int(self.ring), "d_one": self.d_one}
 
     def set_state(self, values: Mapping[str, Any]) -> None:
         """Restore a state returned by :meth:`state`."""
         self.value = float(values["value"])
         self.ring = bool(values["ring"])
+        self.d_one = float(values["d_one"])
