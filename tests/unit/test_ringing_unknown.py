@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import pytest
 
+from papwc.analysis.ring_scan import mc_rigid, realism_rigid, ringing_runs
 from papwc.controllers import make_controller
 from papwc.controllers.rest import RING_LEG
 from papwc.controllers.settings import ControllerSettings
@@ -127,3 +128,12 @@ def test_a_told_mode_is_not_looked_for():
         slave.do_step(k * T, T)
         u = ctl.update(k * T, slave.plant.x_meas(), 1e-3)
     assert not ctl.trust.ring and ctl.rest.ring_dwell == 0
+
+
+@pytest.mark.slow
+def test_the_ring_scan_finds_ringing_on_a_flexible_table_only():
+    """python -m papwc.analysis.ring_scan counts what it should."""
+    runs, seen = ringing_runs([("flex15", TABLE_15HZ), ("eq1", RIGID)])
+    assert runs == 18
+    assert seen and all(line.startswith("flex15 ") for line in seen)
+    assert len(realism_rigid()) == 15 and len(mc_rigid(2)) == 4
