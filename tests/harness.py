@@ -25,6 +25,7 @@ from decimal import Decimal, localcontext
 from pathlib import Path
 from typing import Any, NamedTuple
 
+from papwc.controllers import Controller
 from papwc.master import Execution, FixedStepAlgorithm, SignalSlave, Slave
 from papwc.model.stickslip import simulate
 
@@ -315,7 +316,7 @@ def settings_start_values(settings, T: float) -> dict[str, Any]:
     return values
 
 
-class ScriptedController:
+class ScriptedController(Controller):
     """Plays a fixed force sequence (N); the interface of papwc.controllers.Controller."""
 
     def __init__(self, forces: Sequence[float], T: float = 0.01) -> None:

@@ -36,7 +36,8 @@ class FrictionPlant(CheckedSlave):
 
     Parameters (kg, N, N, N.s/m, m, m/s, m) are read when initialization ends;
     ``u`` (N) is the input held over a step; ``x`` (m), ``v`` (m/s), ``x_meas``
-    (m) and ``stuck`` are the outputs at the end of the last step.
+    (m), ``stuck``, ``x_d`` (m, the motor side; ``x`` on a rigid drive) and ``x_d_meas``
+    (m, the motor encoder) are the outputs at the end of the last step.
     """
 
     author = "papwc"
@@ -62,7 +63,7 @@ class FrictionPlant(CheckedSlave):
 
     def parameter_set(self, name: str) -> None:
         """Until initialization ends, the outputs follow x0, v0 and x_resolution."""
-        if name in ("x0", "v0", "x_resolution"):
+        if name in ("x0", "v0", "x_resolution", "x_d_resolution"):
             self.x = self.x0
             self.v = self.v0
             self._plant = None
@@ -85,6 +86,8 @@ class FrictionPlant(CheckedSlave):
             by_name["v"].getter = lambda: plant.v
             by_name["x_meas"].getter = plant.x_meas
             by_name["stuck"].getter = lambda: plant.v == 0.0
+            by_name["x_d"].getter = plant.x_d_now
+            by_name["x_d_meas"].getter = plant.x_d_meas
             self._advance = plant.step
             return
         by_name["x"].getter = lambda: self.x
@@ -95,6 +98,13 @@ class FrictionPlant(CheckedSlave):
         else:
             by_name["x_meas"].getter = lambda: self.x
         by_name["stuck"].getter = lambda: self.v == 0.0
+        # A rigid drive with an ideal or noiseless motor encoder: x read at its resolution.
+        by_name["x_d"].getter = lambda: self.x
+        resolution_d = self.x_d_resolution
+        if 0.0 < resolution_d < _INF:
+            by_name["x_d_meas"].getter = lambda: quantize(self.x, resolution_d)
+        else:
+            by_name["x_d_meas"].getter = lambda: self.x
         self._advance = self._advance_exact
 
     def step(self, current_time: float, step_size: float) -> str | None:

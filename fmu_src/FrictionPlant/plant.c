@@ -296,6 +296,12 @@ static double noise_draw(const FpParams *p, uint64_t k)
     return p->noise_std * inv_cdf(uniform(p->seed, FP_STREAM_NOISE, k));
 }
 
+/* The motor encoder's EncoderNoise.draw (its own stream): noise at point number k, m. */
+static double motor_noise_draw(const FpParams *p, uint64_t k)
+{
+    return p->x_d_noise_std * inv_cdf(uniform(p->seed, FP_STREAM_MOTOR_NOISE, k));
+}
+
 /* ---- Eq. (1) in closed form (stickslip.py) ----------------------------------------------- */
 
 static double phi1(double z)
@@ -396,7 +402,7 @@ static double quantize(double x, double resolution)
 typedef struct {
     const FpParams *p;
     FpState *w;        /* the state being advanced (f_s_now and the draws live here) */
-    int stribeck, lugre, ripple, stiction, lag, flexible, encoder, exact, is_eq1;
+    int stribeck, lugre, ripple, stiction, lag, flexible, encoder, noisy, exact, is_eq1;
     double w_zero;     /* Stribeck.shape: speeds above which S is 0.0 exactly */
     double ripple_k;   /* Ripple.k = 2*pi/ripple_period, rad/m */
     double rate_gain;  /* ActuatorLag.rate_gain = 1/tau_u, 1/s */
@@ -438,8 +444,9 @@ static void model_init(Model *M, const FpParams *p, FpState *w)
     M->lag = p->tau_u > 0.0;
     M->flexible = p->m_d > 0.0;
     M->encoder = p->noise_std > 0.0;
+    M->noisy = M->encoder || p->x_d_noise_std > 0.0;
     M->exact = !(M->stribeck || M->lugre || M->ripple || M->lag || M->flexible);
-    M->is_eq1 = M->exact && !M->stiction && !M->encoder;
+    M->is_eq1 = M->exact && !M->stiction && !M->noisy;
     if (M->stribeck)
         M->w_zero = p->v_s * pow(FP_P_ZERO, 1.0 / p->delta_s);
     if (M->ripple)
@@ -1229,8 +1236,9 @@ void fp_reset(FpState *s, const FpParams *p)
         s->f_s_now = stiction_draw(p, 0);
         s->stick_draws = 1;
     }
-    if (p->noise_std > 0.0) {
-        s->noise = noise_draw(p, 0);
+    if (p->noise_std > 0.0 || p->x_d_noise_std > 0.0) {
+        if (p->noise_std > 0.0)
+            s->noise = noise_draw(p, 0);
         s->noise_draws = 1;
     }
 }
@@ -1283,8 +1291,9 @@ int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t
         }
         return 1;
     }
-    if (M.encoder) {
-        w.noise = noise_draw(p, w.noise_draws);
+    if (M.noisy) {
+        if (M.encoder)
+            w.noise = noise_draw(p, w.noise_draws);
         w.noise_draws += 1;
     }
     *s = w;
@@ -1315,6 +1324,12 @@ void fp_outputs(const FpState *s, const FpParams *p, FpOutputs *y)
     else
         y->x_meas = quantize(s->x, p->x_resolution);
     y->stuck = s->v == 0.0;
+    /* Plant.x_d_now and Plant.x_d_meas: the motor side (x on a rigid drive). */
+    y->x_d = p->m_d > 0.0 ? s->x_d : s->x;
+    if (p->x_d_noise_std > 0.0)
+        y->x_d_meas = quantize(y->x_d + motor_noise_draw(p, s->noise_draws - 1), p->x_d_resolution);
+    else
+        y->x_d_meas = quantize(y->x_d, p->x_d_resolution);
 }
 
 /* The first deviation of papwc.model.plant.INTEGRATED that is on (> 0): its name, and

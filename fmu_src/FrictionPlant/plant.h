@@ -33,7 +33,7 @@ typedef struct {
     double f_a;            /* force applied by the lagging actuator, N */
     double f_s_now;        /* breakaway force in effect (random stiction), N */
     uint64_t stick_draws;  /* breakaway forces drawn so far */
-    uint64_t noise_draws;  /* encoder noise numbers drawn so far */
+    uint64_t noise_draws;  /* communication points so far when an encoder is noisy */
     double noise;          /* encoder noise at the last communication point, m */
     double h_next;         /* the integrator's step size proposal, s (0: none yet) */
 } FpState;
@@ -69,7 +69,8 @@ int fp_step(FpState *s, const FpParams *p, double u, double h, char *msg, size_t
  * field is finite; else nonzero and msg names the field and its value. */
 int fp_state_check(const FpState *s, char *msg, size_t len);
 
-/* The outputs at the last communication point: x, v, x_meas (Plant.x_meas), stuck. */
+/* The outputs at the last communication point: x, v, x_meas (Plant.x_meas), stuck,
+ * x_d (Plant.x_d_now) and x_d_meas (Plant.x_d_meas, the motor encoder). */
 void fp_outputs(const FpState *s, const FpParams *p, FpOutputs *y);
 
 #ifdef __cplusplus

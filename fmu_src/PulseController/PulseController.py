@@ -17,7 +17,12 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from papwc_pulse_controller.controllers import CONTROLLER_KINDS, Mode, make_controller
+from papwc_pulse_controller.controllers import (
+    CONTROLLER_KINDS,
+    OUTPUT_NAMES,
+    default_outputs,
+    make_controller,
+)
 from papwc_pulse_controller.controllers.settings import ControllerSettings
 from papwc_pulse_controller.fmi.glue import CheckedSlave
 from papwc_pulse_controller.model.settings import (
@@ -75,18 +80,10 @@ class PulseController(CheckedSlave):
 
     # -- variables -------------------------------------------------------------------------
     def output_getter(self, var):
-        """Estimates, pulses, mode and outcome come from the controller."""
-        if var.name in ("b_hat", "f_c_hat"):
-            return lambda: self._estimate(var.name)
-        if var.name == "pulses":
-            return lambda: 0 if self._controller is None else self._controller.pulses
-        if var.name == "mode":
-            return lambda: Mode.SETTLED if self._controller is None else self._controller.mode
-        if var.name == "f_low":
-            return lambda: self._f_low()
-        if var.name in ("outcome", "outcome_reason"):
+        """The controller's outputs (all but u) come from its ``outputs()``."""
+        if var.name in OUTPUT_NAMES:
             name = var.name
-            return lambda: 0 if self._controller is None else getattr(self._controller, name)
+            return lambda: self._outputs()[name]
         if var.name == "maneuver":
             return lambda: self.maneuver
         return None
@@ -115,26 +112,19 @@ class PulseController(CheckedSlave):
         values["kind"] = self._kind()[0]
         return ControllerSettings.from_mapping(values)
 
-    def _f_low(self) -> float:
-        """Lowest pulse height of the controller (before it exists: of the parameters), N."""
-        if self._controller is not None:
-            return float(self._controller.f_low)
-        try:
-            return float(make_controller(self._settings(), self.T).f_low)
-        except (ValueError, TypeError, ZeroDivisionError):
-            return math.nan
-
-    def _estimate(self, name: str) -> float:
-        """Estimate ``name``; before the controller exists, of the current parameters."""
+    def _outputs(self) -> dict[str, Any]:
+        """The controller's outputs; before it exists, those of a controller made from the
+        current parameters (integer outputs at their start values and real ones NaN if
+        the parameters do not make one)."""
         controller = self._controller
         if controller is None:
             if self.check():
-                return math.nan
+                return default_outputs()
             try:
                 controller = make_controller(self._settings(), self.T)
-            except ValueError:
-                return math.nan
-        return float(controller.estimates()[name])
+            except (ValueError, TypeError, ZeroDivisionError):
+                return default_outputs()
+        return controller.outputs()
 
     # -- the model -------------------------------------------------------------------------
     def check(self) -> list[str]:
@@ -186,20 +176,24 @@ class PulseController(CheckedSlave):
         values = fields["_controller"]
         if values is None:
             return fields
-        if not isinstance(values, list) or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) for v in values):
-            raise ValueError("field _controller is not a list of numbers")
+        if not isinstance(values, dict) or not all(
+                isinstance(k, str) and _numbers(v) for k, v in values.items()):
+            raise ValueError("the controller state does not fit: field _controller is not a "
+                             "mapping of names to numbers or lists of numbers")
         settings = {v.name: fields[v.name] for v in CONTROLLER_SETTINGS}
         for v in CONTROLLER_SETTINGS:
             if v.optional and settings[v.name] == -1.0:
                 settings[v.name] = None
         try:
             controller = make_controller(ControllerSettings.from_mapping(settings), fields["T"])
-            if len(values) != len(controller.state()):
-                raise ValueError(f"field _controller holds {len(values)} numbers, the "
-                                 f"{settings['kind']!r} controller {len(controller.state())}")
             controller.set_state(values)
         except (ValueError, TypeError, KeyError, ZeroDivisionError) as exc:
             raise ValueError(f"the controller state does not fit: {exc}") from None
         fields["_controller"] = controller
         return fields
+
+
+def _numbers(value: Any) -> bool:
+    """Whether value is a number (not a bool) or a list of numbers."""
+    items = value if isinstance(value, list) else [value]
+    return all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in items)

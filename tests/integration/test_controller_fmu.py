@@ -117,7 +117,7 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
     assert {n for n, v in variables.items() if v.causality == "parameter"} == settings | {
         "T", "kind_code", "x_ref_offset"}
     assert {n for n, v in variables.items() if v.causality == "input"} == {
-        "x_meas", "x_ref", "maneuver"}
+        "x_meas", "x_ref", "maneuver", "x_d_meas"}
     outputs = {n for n, v in variables.items() if v.causality == "output"}
     assert outputs == {"u", "b_hat", "f_c_hat", "pulses", "mode", "f_low", "outcome",
                        "outcome_reason"}
@@ -183,7 +183,7 @@ def test_fmu_controller_equals_the_python_controller_bit_for_bit(
         assert max(abs(u) for u in forces) == settings.f_p_max  # coarse, saturated
         assert Mode.COARSE in result.traces[0].column("mode")
         in_process = make_controller(settings, maneuver.T)
-        assert in_process.k_p == 20000.0 and in_process.f_p_floor == 120.0
+        assert in_process.seq.k_p == 20000.0 and in_process.f_p_floor == 120.0
 
 
 @pytest.mark.parametrize("variant", ["pwc", "papwc_inf", "exact"])

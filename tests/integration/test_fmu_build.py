@@ -215,6 +215,10 @@ def test_plant_model_description_contract(friction_plant_fmu: Path) -> None:
         "x": ("output", "continuous", "m", None),
         "v": ("output", "continuous", "m/s", None),
         "x_meas": ("output", "continuous", "m", None),
+        "x_d": ("output", "continuous", "m", None),
+        "x_d_meas": ("output", "continuous", "m", None),
+        "x_d_resolution": ("parameter", "fixed", "m", "0"),
+        "x_d_noise_std": ("parameter", "fixed", "m", "0"),
     }
     variables = {v.name: v for v in md.modelVariables}
     deviations = {"v_s", "delta_s", "sigma_0", "sigma_1", "ripple", "ripple_period",
@@ -238,13 +242,15 @@ def test_plant_model_description_contract(friction_plant_fmu: Path) -> None:
         if v.causality == "output":
             assert v.initial == "calculated", v.name
     # ranges where the physics is exact in double precision (papwc.model.plant)
-    base = set(expected) - {"u", "x", "v", "x_meas"}
+    base = set(expected) - {"u", "x", "v", "x_meas", "x_d", "x_d_meas"}
     assert {n: v.min for n, v in variables.items() if v.min is not None and n in base} == {
         "m": "1e-06", "f_c": "0.0", "f_s": "0.0", "c": "0.0", "x_resolution": "0.0",
-        "x0": "-1000000.0", "v0": "-1000000.0"}
+        "x0": "-1000000.0", "v0": "-1000000.0", "x_d_resolution": "0.0",
+        "x_d_noise_std": "0.0"}
     assert {n: v.max for n, v in variables.items() if v.max is not None and n in base} == {
         "m": "1000000000.0", "f_c": "1000000000.0", "f_s": "1000000000.0",
-        "c": "1000000000.0", "x_resolution": "1.0", "x0": "1000000.0", "v0": "1000000.0"}
+        "c": "1000000000.0", "x_resolution": "1.0", "x0": "1000000.0", "v0": "1000000.0",
+        "x_d_resolution": "1.0", "x_d_noise_std": "1.0"}
     # every deviation is bounded, and its default leaves the plant of the paper
     assert all(variables[n].min is not None and variables[n].max is not None
                for n in deviations)

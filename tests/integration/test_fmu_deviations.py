@@ -31,8 +31,9 @@ from fmpy.validation import validate_fmu
 from papwc.controllers.settings import ControllerSettings
 from papwc.errors import FmuError
 from papwc.master import FmuSlave, Maneuver, PhysicsSlave, run_controller
+from papwc.model.effects.encoder import MOTOR_STREAM, EncoderNoise
 from papwc.model.plant import DEVIATION_PARAMETERS
-from papwc.model.stickslip import simulate
+from papwc.model.stickslip import quantize, simulate
 
 T = 0.01
 
@@ -48,8 +49,15 @@ CASES = {
     "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
             "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "noise_std": 2e-7,
             "x_resolution": 1e-7},
+    # The motor encoder: its own resolution, noise and stream, on a flexible and a rigid
+    # drive (x_d = x there), beside a noisy table encoder.
+    "motor_encoder": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "seed": 2,
+                      "x_resolution": 1e-7, "x_d_resolution": 1e-7, "x_d_noise_std": 5e-8,
+                      "noise_std": 5e-8},
+    "motor_encoder_rigid": {"x_d_resolution": 1e-7, "x_d_noise_std": 2e-7, "seed": 3},
+    "motor_resolution_rigid": {"x_d_resolution": 1e-6},
 }
-OUTPUTS = ["x", "v", "x_meas"]
+OUTPUTS = ["x", "v", "x_meas", "x_d", "x_d_meas"]
 
 
 def forces(seed: int, n: int) -> list[float]:
@@ -135,7 +143,8 @@ def test_defaults_are_still_eq1_exactly(instances) -> None:
         assert fmu.step(u)[:2] == [x, v]
 
 
-@pytest.mark.parametrize("case", ("stiction", "noise", "all", "lugre", "flexible"))
+@pytest.mark.parametrize("case", ("stiction", "noise", "all", "lugre", "flexible",
+                                  "motor_encoder", "motor_encoder_rigid"))
 def test_state_get_set_and_serialize_continue_bit_for_bit(case: str, instances) -> None:
     params = CASES[case]
     u_seq = forces(7, 80)
@@ -223,3 +232,26 @@ def test_closed_loop_through_the_fmu_equals_the_in_process_plant(friction_plant_
     for a, b in zip(fmu.traces, physics.traces, strict=True):
         for name in ("x", "v", "x_meas", "u"):
             assert a.column(name) == b.column(name)
+
+
+def test_motor_encoder_reads_the_drive_with_its_own_stream(instances) -> None:
+    """On a rigid drive x_d = x and x_d_meas follows x_meas's law with the motor encoder's
+    parameters (so the same parameters give the same reading); on a flexible drive the
+    motor side rings while the table is stuck, and its noise stream is not the table's."""
+    u_seq = forces(5, 120)
+    table = instances({"noise_std": 2e-7, "x_resolution": 1e-7, "seed": 4})
+    motor = instances({"x_d_noise_std": 2e-7, "x_d_resolution": 1e-7, "seed": 4})
+    noise_d = EncoderNoise(2e-7, 4, MOTOR_STREAM)
+    for k, u in enumerate(u_seq, start=1):
+        x, _, x_meas, _, _ = table.step(u)
+        x2, _, x_meas2, x_d, x_d_meas = motor.step(u)
+        assert (x2, x_d, x_meas2) == (x, x, x)  # an ideal table encoder
+        # x_meas's law with the motor encoder's parameters and stream, point k
+        assert x_d_meas == quantize(x + noise_d.draw(k), 1e-7)
+    both = instances({"noise_std": 2e-7, "x_d_noise_std": 2e-7, "seed": 4})
+    rows = [both.step(u) for u in u_seq]
+    assert all(x_d == x for x, _, _, x_d, _ in rows)
+    assert sum(x_meas != x_d_meas for _, _, x_meas, _, x_d_meas in rows) > 100
+    flexible = instances(CASES["flexible"])
+    rows = [flexible.step(u) for u in [300.0] * 3 + [0.0] * 30]
+    assert any(x_d != x for x, _, _, x_d, _ in rows)

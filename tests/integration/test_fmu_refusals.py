@@ -161,6 +161,7 @@ def test_a_controller_state_that_does_not_fit_is_refused_and_it_controls_on(inst
     cases = bad_states(own, other) + [
         (edited(own, K_c=5.0), "its parameters are invalid: K_c = 5.0"),
         (edited(own, _controller=[1.0, 2.0]), "the controller state does not fit"),
+        (edited(own, _controller={"sequencer.mode": 1}), "the controller state does not fit"),
     ]
     reference = make_controller(ControllerSettings(), T)
     x_ref = 0.01

@@ -107,3 +107,53 @@ def test_libcosim_stops_with_an_error_on_an_invalid_parameter(friction_plant_fmu
     assert "stepped" not in done.stdout
     assert "parameter f_s = 50.0 N: must be >= f_c = 100.0 N" in done.stderr, done.stderr
     assert done.returncode != 0 or "step failed" in done.stdout
+
+
+#: A rigid drive read by a noisy motor encoder, and a flexible one (a 20 Hz mode).
+MOTOR_CASES = {
+    "rigid": {"x_d_resolution": 1e-7, "x_d_noise_std": 2e-7, "seed": 5},
+    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "x_d_resolution": 1e-7,
+                 "x_d_noise_std": 5e-8, "seed": 5},
+}
+
+
+@pytest.mark.parametrize("case", sorted(MOTOR_CASES))
+def test_libcosim_motor_encoder_equals_the_master(friction_plant_fmu: Path, case: str) -> None:
+    """x_d and x_d_meas through libcosim are the master's: the same drive position (to the
+    last bits of libcosim's nanosecond step sizes) and the same count of the motor encoder
+    at every step but where the position lies on a count's edge."""
+    params = MOTOR_CASES[case]
+    md = read_model_description(str(friction_plant_fmu))
+    vr = {v.name: v.valueReference for v in md.modelVariables}
+    execution = CosimExecution.from_step_size(T_NS)
+    slave = CosimLocalSlave(fmu_path=str(friction_plant_fmu), instance_name="plant")
+    index = execution.add_local_slave(slave)
+    for name, value in params.items():
+        if name == "seed":
+            assert execution.integer_initial_value(index, vr[name], value)
+        else:
+            assert execution.real_initial_value(index, vr[name], value)
+    override = CosimManipulator.create_override()
+    execution.add_manipulator(override)
+    observer = CosimObserver.create_last_value()
+    execution.add_observer(observer)
+    rows = []
+    for k, u in enumerate(U_SEQ):
+        assert override.slave_real_values(index, [vr["u"]], [u])
+        assert execution.step(), f"libcosim step {k} failed: {execution.status()}"
+        rows.append(observer.last_real_values(index, [vr["x_d"], vr["x_d_meas"]]))
+
+    with FmuSlave(friction_plant_fmu) as plant:
+        plant.set_start_values(params)
+        _, rec = open_loop(plant, U_SEQ, T, ("x", "x_d", "x_d_meas"))
+    x, x_d, x_d_meas = rec.column("x"), rec.column("x_d"), rec.column("x_d_meas")
+    if case == "rigid":
+        assert x_d == x
+    else:
+        assert any(a != b for a, b in zip(x_d, x, strict=True))
+    same = 0
+    for k, (lib_x_d, lib_meas) in enumerate(rows, start=1):
+        assert abs(lib_x_d - x_d[k]) <= 1e-12, f"step {k}"
+        assert abs(lib_meas - x_d_meas[k]) <= 1e-7 + 1e-15, f"step {k}"
+        same += lib_meas == x_d_meas[k]
+    assert same >= len(rows) - 2

@@ -80,8 +80,8 @@ def test_error_below_the_smallest_pulse_is_a_two_pulse_move():
     # moves farther than the larger of 1.5*|e| and the smallest pulse (the two-pulse move
     # went out past the target by 1.5 d_small before, a pulse beyond that bound).
     ctl = _true_model_controller()
-    ctl._e0 = 1.0  # the maneuver started far away (the base's guard against ending farther)
-    ctl.trust_value = 1.0  # a model that has predicted well
+    ctl.seq.e0 = 1.0  # the maneuver started far away (the base's guard against ending farther)
+    ctl.trust.value = 1.0  # a model that has predicted well
     d_small = ctl.estimator.displacement(ctl.f_floor, 1)
     e = 0.2 * d_small
     n, f_p = ctl.plan_pulse(e)
@@ -218,7 +218,9 @@ def test_exact_settings_are_normal_settings_of_the_table():
     assert ctl.estimator.size == 3 and ctl.max_pulses == 7 and ctl.f_s_tol == 0.1
     assert ctl.estimator.c_hat == pytest.approx(50.0, rel=1e-15)
     assert ctl.estimator.x_resolution == 1e-6
-    assert len(ctl.estimator.state()) == 7 + 3 * 3
+    for k in range(5):
+        ctl.learn(2, 200.0 + k, 1e-4 * (1 + k))
+    assert len(ctl.estimator.pulses) == 3 and len(ctl.estimator.state()["pulses"]) == 3 * 3
 
 
 @pytest.mark.parametrize(

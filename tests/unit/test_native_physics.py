@@ -75,7 +75,8 @@ def bits(value: float | int | bool) -> str:
 def python_view(plant: Plant) -> dict[str, str]:
     """State fields and outputs of the model layer's plant, as bits."""
     out = {name: bits(value) for name, value in plant.state().items()}
-    out.update(x_meas=bits(plant.x_meas()), stuck=bits(plant.v == 0.0))
+    out.update(x_meas=bits(plant.x_meas()), stuck=bits(plant.v == 0.0),
+               x_d_out=bits(plant.x_d_now()), x_d_meas=bits(plant.x_d_meas()))
     return out
 
 
@@ -84,7 +85,8 @@ def native_view(plant: NativePlant) -> dict[str, str]:
     out = {name: bits(value) for name, value in plant.fields().items()}
     y = plant.outputs()
     assert (y.x, y.v) == (plant.state.x, plant.state.v)
-    out.update(x_meas=bits(y.x_meas), stuck=bits(bool(y.stuck)))
+    out.update(x_meas=bits(y.x_meas), stuck=bits(bool(y.stuck)), x_d_out=bits(y.x_d),
+               x_d_meas=bits(y.x_d_meas))
     return out
 
 
@@ -239,7 +241,8 @@ TWO_PI = 2.0 * math.pi
 def base_params(draw: st.DrawFn) -> dict[str, float]:
     f_c = draw(st.floats(20.0, 150.0))
     return {"m": draw(st.floats(50.0, 300.0)), "f_c": f_c,
-            "f_s": f_c * draw(st.floats(1.0, 1.6)), "c": draw(st.floats(0.0, 900.0))}
+            "f_s": f_c * draw(st.floats(1.0, 1.6)),
+            "c": draw(st.one_of(st.just(0.0), st.floats(1e-3, 900.0)))}
 
 
 def stribeck(draw: st.DrawFn) -> dict[str, float]:
@@ -250,7 +253,8 @@ def stribeck(draw: st.DrawFn) -> dict[str, float]:
 def lugre(draw: st.DrawFn, m: float) -> dict[str, float]:
     # Stiff bristles cost the model layer many steps: at most a 2 kHz pre-sliding mode here.
     sigma_0 = m * (TWO_PI * draw(st.floats(50.0, 2000.0))) ** 2
-    return {"sigma_0": sigma_0, "sigma_1": draw(st.floats(0.0, 2.0)) * math.sqrt(sigma_0 * m)}
+    return {"sigma_0": sigma_0, "sigma_1": draw(st.one_of(st.just(0.0), st.floats(1e-3, 2.0)))
+            * math.sqrt(sigma_0 * m)}
 
 
 def ripple(draw: st.DrawFn) -> dict[str, float]:
@@ -268,8 +272,13 @@ def stiction(draw: st.DrawFn, params: dict[str, float]) -> dict[str, float]:
 
 
 def noise(draw: st.DrawFn) -> dict[str, float]:
-    return {"noise_std": draw(st.floats(1e-9, 1e-5)), "seed": draw(st.integers(0, 2**31 - 1)),
-            "x_resolution": draw(st.sampled_from((0.0, 1e-9, 1e-6)))}
+    """The table's encoder noisy or ideal, the motor encoder's likewise (not both ideal)."""
+    table, motor = draw(st.sampled_from(((True, False), (False, True), (True, True))))
+    return {"noise_std": draw(st.floats(1e-9, 1e-5)) if table else 0.0,
+            "x_d_noise_std": draw(st.floats(1e-9, 1e-5)) if motor else 0.0,
+            "seed": draw(st.integers(0, 2**31 - 1)),
+            "x_resolution": draw(st.sampled_from((0.0, 1e-9, 1e-6))),
+            "x_d_resolution": draw(st.sampled_from((0.0, 1e-9, 1e-6)))}
 
 
 def lag(draw: st.DrawFn) -> dict[str, float]:
@@ -280,7 +289,8 @@ def flexible(draw: st.DrawFn, m: float) -> dict[str, float]:
     m_d = draw(st.floats(5.0, 200.0))
     mode = draw(st.floats(5.0, 300.0))  # Hz, with the table free
     return {"m_d": m_d, "k_t": (TWO_PI * mode) ** 2 / (1.0 / m + 1.0 / m_d),
-            "c_t": draw(st.floats(0.0, 1000.0))}
+            # none, or at least the model layer's smallest (OFF_OR_AT_LEAST)
+            "c_t": draw(st.one_of(st.just(0.0), st.floats(1e-3, 1000.0)))}
 
 
 #: Deviation -> how its parameters are drawn (on top of drawn m, f_c, f_s, c).
@@ -350,6 +360,9 @@ REALISM = {
     "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
     "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
             "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "noise_std": 1e-7},
+    "motor_encoder": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "seed": 4,
+                      "x_resolution": 1e-7, "x_d_resolution": 1e-7, "x_d_noise_std": 5e-8},
+    "motor_encoder_rigid": {"x_d_noise_std": 2e-7, "seed": 6, "x_d_resolution": 1e-7},
 }
 
 
@@ -385,7 +398,7 @@ def test_realism_run_is_the_model_layer_bit_for_bit(native: NativeLibrary, case:
     assert moved > 10 and (stuck > 10 or "sigma_0" in params), (stuck, moved)
     if "f_s_spread" in params:
         assert plant.state.stick_draws > 5
-    if "noise_std" in params:
+    if "noise_std" in params or "x_d_noise_std" in params:
         assert plant.state.noise_draws == n + 1
 
 

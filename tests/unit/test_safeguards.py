@@ -14,7 +14,13 @@ from harness import TABLE_1
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from papwc.controllers import Mode, make_controller
+from papwc.controllers import (
+    CONTROLLER_KINDS,
+    Controller,
+    Mode,
+    PulseControllerBase,
+    make_controller,
+)
 from papwc.controllers.base import (
     BAND_SIGMAS,
     NOISE_DWELL,
@@ -36,6 +42,8 @@ from papwc.model.settings import (
 
 T = 0.01
 KINDS = ("pwc", "papwc", "exact")
+#: Every registered kind that plans pulses (the trust region applies to its plans).
+PULSE_KINDS = sorted(k for k, c in CONTROLLER_KINDS.items() if issubclass(c, PulseControllerBase))
 
 
 def _settings(kind: str, **kw) -> ControllerSettings:
@@ -81,9 +89,9 @@ def test_a_noisy_rest_is_detected_and_its_noise_measured():
     result = run_closed_loop(slave, ControllerSlave(ctl), Maneuver(iterations=3), settings)
     expected = math.sqrt(noise**2 + count**2 / 12.0)  # the readings' scatter at rest
     # measured: 2.13e-7 against 2.02e-7 (seed 3)
-    assert math.sqrt(ctl.sigma2) == pytest.approx(expected, rel=0.1)
-    assert ctl._band == pytest.approx(BAND_SIGMAS * math.sqrt(ctl.sigma2))
-    assert ctl._dwell == NOISE_DWELL
+    assert math.sqrt(ctl.rest.sigma2) == pytest.approx(expected, rel=0.1)
+    assert ctl.rest.band == pytest.approx(BAND_SIGMAS * math.sqrt(ctl.rest.sigma2))
+    assert ctl.rest.dwell == NOISE_DWELL
     for tr in result.traces:
         s = summarize(tr, settings.tolerance)
         assert abs(s["final_error_m"]) <= settings.tolerance and s["outcome"] == "settled"
@@ -128,10 +136,10 @@ def test_the_coarse_force_is_released_inside_e_band_when_coasting_stops_there():
     assert ctl.mode == Mode.COARSE
     ctl.update(0.01, 0.1 - 2e-3, 0.1)  # outside e_band: coarse feedback
     u = ctl.update(0.02, 0.1 - 5e-4, 0.1)  # inside, at 0.15 m/s: would coast 21 mm
-    assert ctl._released is False and u != 0.0
+    assert ctl.seq.released is False and u != 0.0
     # inside e_band, 1 mm/s: coasting stops it after m*v**2/(2 f_c_est) = 0.94 um
     u = ctl.update(0.03, 0.1 - 5e-4 + 1e-5, 0.1)
-    assert ctl._released and u == 0.0 and ctl.mode == Mode.COARSE
+    assert ctl.seq.released and u == 0.0 and ctl.mode == Mode.COARSE
     assert ctl.update(0.04, 0.1 - 5e-4 + 1.1e-5, 0.1) == 0.0  # still coasting: no force
 
 
@@ -155,7 +163,7 @@ def test_after_a_miss_no_pulse_unlike_those_tried():
     higher than the highest tried, whatever the refitted model says (it would jump to two
     samples at 211 N on the plant of this situation, measured, and move 3.5 times |e|)."""
     ctl = make_controller(_settings("exact"), T)
-    ctl._pred = 0.0
+    ctl.seq.pred = 0.0
     ctl.learn(1, 127.5, 0.0)  # did not move
     ctl.learn(1, 178.7, 3.07e-6)
     ctl.errors = [1.0, 0.9]  # the last pulse moved a tenth of its prediction
@@ -177,7 +185,7 @@ def test_a_pulse_wider_than_any_made_goes_at_most_three_times_the_farthest_move(
              (182.9, 1.98e-6), (201.1, 4.54e-6)]
     for f, d in moves:
         ctl.learn(1, f, d)
-    ctl.trust_value, ctl.errors = 1.0, [0.1, 0.1]
+    ctl.trust.value, ctl.errors = 1.0, [0.1, 0.1]
     assert ctl.estimator.rel_misfit > 0.2
     e = 3.96e-5
     assert ctl.plan_displacement(e)[0] == 2  # what the model alone would plan
@@ -185,7 +193,7 @@ def test_a_pulse_wider_than_any_made_goes_at_most_three_times_the_farthest_move(
     assert n == 1 and f_p > 201.1
     assert ctl.predict(n, f_p) <= 2.0 / 3.0 * 3.0 * 4.54e-6 * (1 + 1e-9)
     ctl.learn(2, 230.0, 3e-5)  # a two-sample pulse made: no longer wider than any
-    ctl.trust_value, ctl.errors = 1.0, [0.1, 0.1]
+    ctl.trust.value, ctl.errors = 1.0, [0.1, 0.1]
     n, f_p = ctl.plan_pulse(e)
     assert ctl.predict(n, f_p) == pytest.approx(e, rel=1e-6)
 
@@ -206,11 +214,11 @@ def test_a_model_that_missed_falls_back_to_the_smallest_pulse():
     assert ctl.plan_pulse(e) == (1, ctl.f_floor)
     assert ctl.plan_pulse(-e) == (1, -ctl.f_floor)
     assert ctl.plan_pulse(0.5 * d_small)[1] == 0.0
-    assert ctl.refusal == Reason.NO_MOVE_HELPS
+    assert ctl.seq.refusal == Reason.NO_MOVE_HELPS
     ctl.misses = 3
     assert ctl.plan_pulse(e) == (1, ctl.f_floor)
     assert ctl.plan_pulse(0.5 * d_small)[1] == 0.0
-    assert ctl.refusal == Reason.MODEL_REJECTED
+    assert ctl.seq.refusal == Reason.MODEL_REJECTED
 
 
 def test_a_rejected_model_steps_up_a_smallest_pulse_that_only_crept():
@@ -221,15 +229,16 @@ def test_a_rejected_model_steps_up_a_smallest_pulse_that_only_crept():
     ctl = make_controller(_settings("exact", x_resolution=1e-7), T)
     for f, d in [(300.0, 2e-4), (200.0, 3e-5), (150.0, 2e-5)]:
         ctl.learn(3, f, d)
-    ctl.sigma2 = (2e-7) ** 2
-    ctl._update_rest_test()
-    band, f_lo = ctl._band, ctl.f_floor
+    ctl.rest.sigma2 = (2e-7) ** 2
+    ctl.rest.update_test()
+    band, f_lo = ctl.rest.band, ctl.f_floor
     assert band > 0.0
-    ctl.misses, ctl.pulses = 3, 1
+    ctl.misses, ctl.seq.pulses = 3, 1
     e = 2.0 * ctl.displacement(1, 1.1 * f_lo)
-    ctl.last_pulse, ctl.last_d = (1, f_lo), 2.0 * band  # moved: the smallest again
+    # moved: the smallest again
+    (ctl.seq.last_n, ctl.seq.last_f), ctl.seq.last_d = (1, f_lo), 2.0 * band
     assert ctl.plan_pulse(e) == (1, f_lo)
-    ctl.last_pulse, ctl.last_d = (1, -f_lo), -0.5 * band  # crept
+    (ctl.seq.last_n, ctl.seq.last_f), ctl.seq.last_d = (1, -f_lo), -0.5 * band  # crept
     n, f_p = ctl.plan_pulse(e)
     assert n == 1 and f_p == pytest.approx(1.1 * f_lo, rel=1e-12)
     assert ctl.plan_pulse(-e)[1] == pytest.approx(-1.1 * f_lo, rel=1e-12)
@@ -240,9 +249,9 @@ def test_a_rejected_model_steps_up_a_smallest_pulse_that_only_crept():
 
 def test_noise_weights_the_fit_and_marks_what_did_not_move():
     ctl = make_controller(_settings("exact", x_resolution=1e-7), T)
-    ctl.sigma2 = (2e-7) ** 2
-    ctl._update_rest_test()
-    ctl._pred = 1e-5
+    ctl.rest.sigma2 = (2e-7) ** 2
+    ctl.rest.update_test()
+    ctl.seq.pred = 1e-5
     ctl.learn(1, 125.0, 2e-7)  # within 3 sigma of no motion: did not move
     assert ctl.estimator.f_s_lo == 125.0 and ctl.estimator.pulses == []
     assert ctl.estimator.meas_sigma == pytest.approx(math.sqrt(2.0 * 4e-14 / (NOISE_DWELL + 1)))
@@ -255,11 +264,11 @@ FLEXIBLE = {"m": 100.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0, "m_d": 50.0, "k_
 
 def test_a_known_mode_lengthens_the_dwell_and_caps_the_trust():
     ctl = make_controller(_settings("exact", f_mode=20.0), T)
-    assert ctl._dwell == math.ceil(MODE_PERIODS / (20.0 * T))  # periods of 20 Hz, whole samples
-    ctl.trust_value = 1.0
+    assert ctl.rest.dwell == math.ceil(MODE_PERIODS / (20.0 * T))  # periods of 20 Hz, whole samples
+    ctl.trust.value = 1.0
     assert ctl.trust() == 0.5
     rigid = make_controller(_settings("exact"), T)
-    assert rigid._dwell == 1
+    assert rigid.rest.dwell == 1
 
 
 @pytest.mark.parametrize("f_mode", [5e-324, 1e-6, 2.4e-4])
@@ -321,13 +330,14 @@ readings = st.lists(st.one_of(
 
 
 @settings(max_examples=120, deadline=None)
-@given(kind=st.sampled_from(KINDS), xs=readings, x_ref=st.sampled_from([0.01, 1e-3, 5e-5]),
+@given(kind=st.sampled_from(PULSE_KINDS), xs=readings,
+       x_ref=st.sampled_from([0.01, 1e-3, 5e-5]),
        noise=st.booleans())
 def test_no_measurements_make_a_pulse_beyond_the_trust_region_or_nan(kind, xs, x_ref, noise):
     ctl = make_controller(_settings(kind), T)
     if noise:
-        ctl.sigma2 = 4e-14
-        ctl._update_rest_test()
+        ctl.rest.sigma2 = 4e-14
+        ctl.rest.update_test()
     plan = ctl.plan_pulse
     planned = []
 
@@ -353,7 +363,8 @@ def test_no_measurements_make_a_pulse_beyond_the_trust_region_or_nan(kind, xs, x
             assert ctl.outcome == Outcome.STOPPED and u == 0.0
             assert stopped or ctl.outcome_reason == Reason.INVALID_MEASUREMENT
     # (a first reading that is invalid leaves the "not read yet" NaNs of a new maneuver)
-    assert all(math.isfinite(v) for v in ctl.state()) or not abs(xs[0]) <= X_LIMIT
+    values = [q for v in ctl.state().values() for q in (v if isinstance(v, list) else [v])]
+    assert all(math.isfinite(v) for v in values) or not abs(xs[0]) <= X_LIMIT
 
 
 # -- honest outcomes -------------------------------------------------------------------------
@@ -400,7 +411,7 @@ def test_no_pulse_that_would_end_the_maneuver_farther_than_it_started():
 
 
 # -- the pulse bound -------------------------------------------------------------------------
-class Scripted:
+class Scripted(Controller):
     """Forces played one per sample; a fixed outcome (for the trace)."""
 
     kind = "scripted"

@@ -44,7 +44,7 @@ PAPWC_FIELDS = ("kind, f_p_max, t_p_max, K_c, tolerance, m_est, f_c_est, f_p_min
         (("m = 150.0", "mass = 150.0"), "mass",
          "[plant] unknown field 'mass'; allowed: m, f_c, f_s, c, x_resolution, v_s, delta_s, "
          "sigma_0, sigma_1, ripple, ripple_period, ripple_phase, f_s_spread, seed, tau_u, m_d, "
-         "k_t, c_t, noise_std"),
+         "k_t, c_t, noise_std, x_d_resolution, x_d_noise_std"),
         (("T = 0.01", "T = 0.0"), "'T'", "[maneuver] field 'T': T = 0.0 s: must satisfy 1e-09 "
                                          "<= T <= 1000 s"),
         (("iterations = 1", "iterations = 1.5"), "iterations",

@@ -561,7 +561,8 @@ def test_plant_problems_accepts_boundaries():
         ({"mass": 150.0}, "mass", "mass: the plant has no such parameter; parameters: m, f_c, "
                                   "f_s, c, x0, v0, x_resolution, v_s, delta_s, sigma_0, "
                                   "sigma_1, ripple, ripple_period, ripple_phase, f_s_spread, "
-                                  "seed, tau_u, m_d, k_t, c_t, noise_std"),
+                                  "seed, tau_u, m_d, k_t, c_t, noise_std, x_d_resolution, "
+                                  "x_d_noise_std"),
     ],
 )
 def test_plant_problems_checks_the_initial_state_the_encoder_and_unknown_names(

@@ -52,9 +52,11 @@ Standard library only (bundled into the controller FMU).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 from ..model.pulse import b_coulomb, nearest_increasing, pulse_displacement
-from .base import Z_DECIDE, Controller, Reason
+from .base import Z_DECIDE, PulseControllerBase, Reason
 from .exact_fit import PulseModelEstimator
 from .settings import ControllerSettings
 
@@ -92,7 +94,7 @@ _EXACT_ENOUGH = 0.2
 _N_SEARCH_MAX = 1 << 20
 
 
-class ExactController(Controller):
+class ExactController(PulseControllerBase):
     """Pulse control on the exact model, Eq. (3), with m, f_c, c and f_s learned online.
 
     Each pulse is planned for the measured error ``e`` (see the module): a
@@ -138,7 +140,6 @@ class ExactController(Controller):
         self.fine_error = 1.0
         self._after_single = False
         super().__init__(settings, T)
-        self.trust_value = float(settings.trust0)
 
     def reset(self) -> None:
         """Start a new maneuver from rest: the learned model is kept, misses forgotten."""
@@ -293,10 +294,10 @@ class ExactController(Controller):
         half the smallest pulse with too little trust for a two-pulse move.
         """
         if not math.isfinite(e):
-            self.refusal = Reason.INVALID_MEASUREMENT
+            self.seq.refusal = Reason.INVALID_MEASUREMENT
             return 1, 0.0
         if self.pulses >= self.max_pulses:
-            self.refusal = Reason.PULSE_BUDGET
+            self.seq.refusal = Reason.PULSE_BUDGET
             return 1, 0.0
         est = self.estimator
         f_lo = self.f_floor
@@ -305,14 +306,14 @@ class ExactController(Controller):
         trust = self.trust()
         rel = max(min(est.rel_misfit, max(self.errors)), 1e-9)
         toward = math.copysign(1.0, e)
-        self.refusal = Reason.NO_MOVE_HELPS
+        self.seq.refusal = Reason.NO_MOVE_HELPS
         if self.misses >= _REJECT_AFTER or (self.misses and rel >= _CAUTIOUS):
             # The model is not to be trusted: only the smallest pulse toward the target,
             # and only while it lands no farther than now even if it moves twice as far
             # as the pulses of that height moved so far.
-            n_last, f_last = self.last_pulse
+            n_last, f_last = self.seq.last_pulse
             if (n_last == 1 and abs(f_last) >= f_lo and self.pulses
-                    and abs(self.last_d) <= self._band):
+                    and abs(self.seq.last_d) <= self.rest.band):
                 # the last cautious pulse did not move measurably (a creep): 10 % higher,
                 # while the model says it moves no farther than the error
                 f_up = min(abs(f_last) * (1.0 + _PROBE_STEP), self.settings.f_p_max)
@@ -321,7 +322,7 @@ class ExactController(Controller):
             if d_small <= d:
                 return 1, toward * f_lo
             if self.misses >= _REJECT_AFTER:
-                self.refusal = Reason.MODEL_REJECTED
+                self.seq.refusal = Reason.MODEL_REJECTED
             return 1, 0.0
         if trust * d >= d_small:
             if d <= max(0.5 * est.x_resolution, rel * d):
@@ -342,9 +343,9 @@ class ExactController(Controller):
         # the way back is planned from where the way out ended: its error is what counts
         rel_back = max(min(rel, self.fine_error), 1e-9)
         if (trust * two >= d_small and d > max(0.5 * est.x_resolution, rel_back * two)
-                and d + d_small / trust <= abs(self._e0)):
+                and d + d_small / trust <= abs(self.seq.e0)):
             if self.pulses + 2 > self.max_pulses:
-                self.refusal = Reason.PULSE_BUDGET
+                self.seq.refusal = Reason.PULSE_BUDGET
                 return 1, 0.0
             return 1, -toward * f_lo  # away by d_small; back by d + d_small next
         # A height below the lowest known to move may move the mass less: a probe of f_s
@@ -386,12 +387,12 @@ class ExactController(Controller):
 
     def learn(self, n: int, f_p: float, d: float) -> None:
         """Take the measured displacement d (m) of the pulse (n samples, f_p N) into the model."""
-        pred = self._pred
+        pred = self.seq.pred
         d_along = d if f_p > 0.0 else -d
         noise = Z_DECIDE * self._meas_sigma()
         est = self.estimator
         est.meas_sigma = self._meas_sigma()
-        if pred > 0.0 and math.isfinite(d_along) and d_along > max(noise, self._band):
+        if pred > 0.0 and math.isfinite(d_along) and d_along > max(noise, self.rest.band):
             # (a pulse that did not move probed f_s: it says nothing of the model)
             r = max(abs(d_along - pred) - noise, 0.0) / pred
             near = n == 1 and abs(f_p) < min(est.f_s_hi, 1.2 * max(est.f_s_lo, est.f_c_hat))
@@ -422,7 +423,7 @@ class ExactController(Controller):
 
     def _meas_sigma(self) -> float:
         """Standard deviation of a displacement measured as a difference of two rests, m."""
-        return math.sqrt(2.0 * self.sigma2 / (self._dwell + 1))
+        return math.sqrt(2.0 * self.rest.sigma2 / (self.rest.dwell + 1))
 
     def estimates(self) -> dict[str, float]:
         """``b_hat`` (Eq. (4) at f_p_max, m/s**2), ``f_c_hat``, ``m_hat``, ``c_hat``, f_s bracket.
@@ -439,21 +440,27 @@ class ExactController(Controller):
             "c_hat": c,
             "f_s_lo": est.f_s_lo,
             "f_s_hi": est.f_s_hi,
-            "trust": self.trust_value,
+            "trust": self.trust.value,
         }
 
-    def state(self) -> list[float]:
-        """Base state, the prediction errors and the estimator's state (fixed length)."""
-        return (super().state() + [*self.errors, float(self.misses), self.estimator.meas_sigma,
-                                   self.fine_error, float(self._after_single)]
-                + self.estimator.state())
+    def law_state(self) -> dict[str, Any]:
+        """The prediction errors, misses, and the estimator's state (``estimator.*``)."""
+        est = self.estimator
+        out = {**super().law_state(), "errors": list(self.errors), "misses": self.misses,
+               "meas_sigma": est.meas_sigma, "fine_error": self.fine_error,
+               "after_single": int(self._after_single)}
+        out.update({f"estimator.{k}": v for k, v in est.state().items()})
+        return out
 
-    def set_state(self, values: list[float]) -> None:
-        """Restore a state returned by :meth:`state`."""
-        n = len(super().state())
-        super().set_state(values[:n])
-        self.errors = [float(values[n]), float(values[n + 1])]
-        self.misses = int(values[n + 2])
-        self.estimator.meas_sigma = float(values[n + 3])
-        self.fine_error, self._after_single = float(values[n + 4]), bool(values[n + 5])
-        self.estimator.set_state(values[n + 6:])
+    def set_law_state(self, values: Mapping[str, Any]) -> None:
+        super().set_law_state(values)
+        errors = [float(v) for v in values["errors"]]
+        if len(errors) != 2:
+            raise ValueError(f"law.errors holds {len(errors)} numbers, not 2")
+        self.errors = errors
+        self.misses = int(values["misses"])
+        self.estimator.meas_sigma = float(values["meas_sigma"])
+        self.fine_error, self._after_single = (float(values["fine_error"]),
+                                               bool(values["after_single"]))
+        self.estimator.set_state({k.split(".", 1)[1]: v for k, v in values.items()
+                                  if k.startswith("estimator.")})

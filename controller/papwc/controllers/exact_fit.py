@@ -11,9 +11,11 @@ Standard library only (bundled into the controller FMU).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
+from typing import Any
 
 from ..model.pulse import pulse_displacement
-from .base import Z_DECIDE
+from .sequencer import Z_DECIDE
 
 __all__ = ["PulseModelEstimator"]
 
@@ -314,17 +316,21 @@ class PulseModelEstimator:
         return max(value, _MISFIT_MIN) if math.isfinite(value) else 1.0
 
     # -- state -------------------------------------------------------------------------
-    def state(self) -> list[float]:
-        """Everything that evolves, as a flat list of ``7 + 3*history`` floats."""
-        out = [*self.theta, self.f_s_lo, self.f_s_hi, self.rel_misfit, float(len(self.pulses))]
-        for i in range(self.size):
-            out.extend(self.pulses[i] if i < len(self.pulses) else (0.0, 0.0, 0.0))
-        return [float(v) for v in out]
+    def state(self) -> dict[str, Any]:
+        """Everything that evolves, by name: ``theta`` (3 numbers), ``f_s_lo``, ``f_s_hi``
+        (N), ``rel_misfit`` and ``pulses`` (n, |f_p|, d of each, flat, oldest first)."""
+        return {"theta": [float(v) for v in self.theta], "f_s_lo": self.f_s_lo,
+                "f_s_hi": self.f_s_hi, "rel_misfit": self.rel_misfit,
+                "pulses": [float(v) for p in self.pulses for v in p]}
 
-    def set_state(self, values: list[float]) -> None:
-        """Restore a state returned by :meth:`state`."""
-        v = [float(q) for q in values]
-        self.theta = v[0:3]
-        self.f_s_lo, self.f_s_hi, self.rel_misfit = v[3], v[4], v[5]
-        count = int(v[6])
-        self.pulses = [(int(v[7 + 3 * i]), v[8 + 3 * i], v[9 + 3 * i]) for i in range(count)]
+    def set_state(self, values: Mapping[str, Any]) -> None:
+        """Restore a state returned by :meth:`state` (ValueError if it does not fit)."""
+        theta = [float(q) for q in values["theta"]]
+        flat = [float(q) for q in values["pulses"]]
+        if len(theta) != 3 or len(flat) % 3 or len(flat) > 3 * self.size:
+            raise ValueError(f"estimator state: theta holds {len(theta)} numbers (3), pulses "
+                             f"{len(flat)} (a multiple of 3, at most {3 * self.size})")
+        self.theta = theta
+        self.f_s_lo, self.f_s_hi = float(values["f_s_lo"]), float(values["f_s_hi"])
+        self.rel_misfit = float(values["rel_misfit"])
+        self.pulses = [(int(flat[i]), flat[i + 1], flat[i + 2]) for i in range(0, len(flat), 3)]

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from .base import Controller
+from .base import PulseControllerBase
 from .estimators import Rls2
 from .pwc import REGRESSOR_PLANNED
 from .settings import ControllerSettings
@@ -47,7 +47,7 @@ def papwc_amplitude(f_c: float, f_p: float, t_p: float, T_x: float) -> float:
     return 0.5 * f_c + 0.5 * math.sqrt(max(radicand, 0.0))
 
 
-class PapwcController(Controller):
+class PapwcController(PulseControllerBase):
     """Adaptive PAPWC: Eq. (10)-(18), with the regressor sign corrected.
 
     The width follows from Eq. (4)/(6) at f_p_max with ``b_hat = A1*f_p_max**2
@@ -173,12 +173,13 @@ class PapwcController(Controller):
         """``b_hat`` at f_p_max (m/s**2) and ``f_c_hat`` = A2/A1 (N)."""
         return {"b_hat": self.b_hat(self.settings.f_p_max), "f_c_hat": self.f_c_hat}
 
-    def state(self) -> list[float]:
-        return super().state() + self.estimator.state() + [self.f_p_plan, self.t_p_plan]
+    def law_state(self) -> dict[str, float]:
+        """The floor, the estimates A1, A2, the covariance P and the pulse planned at f_p_max."""
+        a1, a2, p11, p12, p22 = self.estimator.state()
+        return {**super().law_state(), "A1": a1, "A2": a2, "P11": p11, "P12": p12, "P22": p22,
+                "f_p_plan": self.f_p_plan, "t_p_plan": self.t_p_plan}
 
-    def set_state(self, values: list[float]) -> None:
-        n = len(super().state())
-        m = len(self.estimator.state())
-        super().set_state(values[:n])
-        self.estimator.set_state(values[n:n + m])
-        self.f_p_plan, self.t_p_plan = float(values[n + m]), float(values[n + m + 1])
+    def set_law_state(self, values) -> None:
+        super().set_law_state(values)
+        self.estimator.set_state([values[k] for k in ("A1", "A2", "P11", "P12", "P22")])
+        self.f_p_plan, self.t_p_plan = float(values["f_p_plan"]), float(values["t_p_plan"])

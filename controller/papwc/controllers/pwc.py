@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from ..model.pulse import b_coulomb
-from .base import Controller
+from .base import PulseControllerBase
 from .estimators import ScalarRls
 from .settings import ControllerSettings
 
@@ -15,7 +15,7 @@ REGRESSOR_APPLIED = 0
 REGRESSOR_PLANNED = 1
 
 
-class PwcController(Controller):
+class PwcController(PulseControllerBase):
     """Adaptive PWC: Eq. (4)-(9).
 
     Every pulse has the height ``f_p_max * sgn(e)``; its width follows from
@@ -85,12 +85,12 @@ class PwcController(Controller):
         f_p = self.settings.f_p_max
         return {"b_hat": b, "f_c_hat": f_p * f_p / (2.0 * self.settings.m_est * b + f_p)}
 
-    def state(self) -> list[float]:
-        return super().state() + self.estimator.state() + [self.t_p_plan]
+    def law_state(self) -> dict[str, float]:
+        """The floor, the estimator's ``b_hat`` and ``F_inv``, and the planned width."""
+        b_hat, f_inv = self.estimator.state()
+        return {**super().law_state(), "b_hat": b_hat, "F_inv": f_inv, "t_p_plan": self.t_p_plan}
 
-    def set_state(self, values: list[float]) -> None:
-        n = len(super().state())
-        m = len(self.estimator.state())
-        super().set_state(values[:n])
-        self.estimator.set_state(values[n:n + m])
-        self.t_p_plan = float(values[n + m])
+    def set_law_state(self, values) -> None:
+        super().set_law_state(values)
+        self.estimator.set_state([values["b_hat"], values["F_inv"]])
+        self.t_p_plan = float(values["t_p_plan"])

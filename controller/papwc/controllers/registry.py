@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .base import Controller
 from .exact import ExactController
+from .interface import Controller
 from .papwc import PapwcController
 from .pwc import PwcController
 from .settings import ControllerSettings

@@ -37,6 +37,7 @@ import math
 from pathlib import Path
 
 from papwc.model.dynamics import MAX_EVENTS, MAX_STEPS, TOLERANCES
+from papwc.model.effects.encoder import MOTOR_STREAM as MOTOR_NOISE_STREAM
 from papwc.model.effects.encoder import STREAM as NOISE_STREAM
 from papwc.model.effects.stiction import STREAM as STICTION_STREAM
 from papwc.model.plant import (
@@ -195,6 +196,7 @@ def plant_header() -> str:
         f"#define FP_MAX_EVENTS {int(MAX_EVENTS)}",
         f"#define FP_STREAM_STICTION {int(STICTION_STREAM)}",
         f"#define FP_STREAM_NOISE {int(NOISE_STREAM)}",
+        f"#define FP_STREAM_MOTOR_NOISE {int(MOTOR_NOISE_STREAM)}",
         "",
         rule_tables(),
         "",

@@ -12,6 +12,7 @@ import math
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
+from papwc.controllers import OUTPUT_NAMES
 from papwc.master.slave import Slave
 from papwc.master.trace import Trace
 
@@ -47,8 +48,10 @@ class Observer(Protocol):
 
 #: Trace columns read from the plant at each communication point (state at t_k).
 _STATE = ("x", "v", "x_meas")
-#: Trace columns read from the controller after its sample at t_k.
-_CONTROLLER = ("mode", "pulses", "b_hat", "f_c_hat", "f_low", "outcome", "outcome_reason")
+#: Trace columns of the motor side, read where the plant has them (NaN where not).
+_MOTOR = ("x_d", "x_d_meas")
+#: Trace columns read from the controller after its sample at t_k: its outputs but u.
+_CONTROLLER = OUTPUT_NAMES
 
 
 class TraceObserver:
@@ -69,8 +72,8 @@ class TraceObserver:
     Parameters
     ----------
     plant, controller : Slave
-        The plant (variables x, v, x_meas) and the controller (u, mode,
-        pulses, b_hat, f_c_hat, f_low, outcome, outcome_reason), connected
+        The plant (variables x, v, x_meas) and the controller (the model layer's
+        CONTROLLER_OUTPUTS), connected
         ``controller.u -> plant.u``.
     label : str
         Controller label of the trace.
@@ -95,6 +98,9 @@ class TraceObserver:
     def setup(self, execution: Execution) -> None:
         """Watch the plant's state and the controller's outputs; learn the timing."""
         self._state = self.plant.watch(_STATE)
+        known = self.plant.variables()
+        self._motor_names = tuple(name for name in _MOTOR if name in known)
+        self._motor = self.plant.watch(self._motor_names)
         (self._u,) = self.controller.watch(("u",))
         self._ctrl = self.controller.watch(_CONTROLLER)
         self._delayed = execution.algorithm.timing == "delayed"
@@ -149,6 +155,10 @@ class TraceObserver:
         plant = list(zip(*plant_rows[:n], strict=True)) if n else None
         ctrl = list(zip(*ctrl_rows, strict=True)) if n else None
         for name, i in zip(_STATE, self._state, strict=True):
+            cols[name] = list(plant[i]) if n else []
+        for name in _MOTOR:
+            cols[name] = [math.nan] * n
+        for name, i in zip(self._motor_names, self._motor, strict=True):
             cols[name] = list(plant[i]) if n else []
         cols["e"] = [x_ref - x for x in cols["x"]]
         iu = self._u

@@ -33,6 +33,7 @@ from papwc.controllers import Controller
 from papwc.errors import FmuError
 from papwc.model.dynamics import Plant
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES, plant_problems
+from papwc.model.settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 
 __all__ = ["ControllerSlave", "PhysicsSlave", "SignalSlave", "Slave"]
 
@@ -170,6 +171,8 @@ class PhysicsSlave(_WatchedAttributes):
         self.params: dict[str, Any] = dict(PLANT_DEFAULTS)
         self.plant = Plant(self.params)
         self.x_meas = 0.0
+        self.x_d = 0.0
+        self.x_d_meas = 0.0
         self.u = 0.0
         self.stuck = True
         self.p = SimpleNamespace(**self.params)
@@ -182,7 +185,7 @@ class PhysicsSlave(_WatchedAttributes):
     def _path(self, name: str) -> str:
         if name in ("x", "v"):
             return f"plant.{name}"
-        return name if name in ("u", "x_meas", "stuck") else f"p.{name}"
+        return name if name in ("u", "x_meas", "stuck", "x_d", "x_d_meas") else f"p.{name}"
 
     @property
     def x(self) -> float:
@@ -203,8 +206,11 @@ class PhysicsSlave(_WatchedAttributes):
         self.plant.v = value
 
     def _update_outputs(self) -> None:
-        self.x_meas = self.plant.x_meas()
-        self.stuck = self.plant.v == 0.0
+        plant = self.plant
+        self.x_meas = plant.x_meas()
+        self.stuck = plant.v == 0.0
+        self.x_d = plant.x_d_now()
+        self.x_d_meas = plant.x_d_meas()
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
         """Parameters and input start values, applied at every (re)initialization."""
@@ -257,12 +263,13 @@ class PhysicsSlave(_WatchedAttributes):
         pass
 
 
-#: Variables of a Python controller slave: inputs, and the outputs every controller has.
+#: Variables of a Python controller slave: its inputs, and the outputs every controller has
+#: (the model layer's CONTROLLER_INPUTS but ``maneuver``, which ``restart`` stands for, and
+#: CONTROLLER_OUTPUTS).
 CONTROLLER_SLAVE_VARIABLES = {
-    "x_meas": "input", "x_ref": "input", "u": "output", "mode": "output",
-    "pulses": "output", "b_hat": "output", "f_c_hat": "output", "f_low": "output",
-    "outcome": "output", "outcome_reason": "output",
-}  # fmt: skip
+    **{v.name: "input" for v in CONTROLLER_INPUTS if v.name != "maneuver"},
+    **{v.name: "output" for v in CONTROLLER_OUTPUTS},
+}
 
 
 class ControllerSlave(_WatchedAttributes):
@@ -270,16 +277,11 @@ class ControllerSlave(_WatchedAttributes):
 
     Like PulseController.fmu: ``do_step(t, h)`` samples the inputs ``x_meas``
     and ``x_ref`` (m) present at ``t`` and sets ``u`` (N), the force to hold
-    over the next sample; ``mode``, ``pulses``, ``f_low``, ``outcome``,
-    ``outcome_reason`` and the controller's estimates (``b_hat``, ``f_c_hat``,
-    ...) are outputs. ``restart`` starts a new
-    maneuver from rest with what the controller learned.
-
-    Besides ``update``, ``reset`` and ``estimates``, the controller has the
-    attributes ``mode``, ``pulses``, ``f_low``, ``outcome``,
-    ``outcome_reason``, ``revision`` (changes when the estimates may have) and
-    ``idle_samples`` (grows when a sample changed nothing but a count: the
-    outputs are then those of the sample before).
+    over the next sample; the controller's :meth:`~papwc.controllers.Controller.outputs`
+    (the model layer's ``CONTROLLER_OUTPUTS``) and any further estimates (``m_hat``,
+    ...) are outputs. ``restart`` starts a new maneuver from rest with what the
+    controller learned. When the controller only counted a sample
+    (``idle_samples`` grew) the outputs are those of the sample before.
     """
 
     def __init__(self, controller: Controller, name: str = "controller") -> None:
@@ -287,24 +289,24 @@ class ControllerSlave(_WatchedAttributes):
         self.controller = controller
         self.x_meas = 0.0
         self.x_ref = 0.0
+        self.x_d_meas = 0.0
         self.u = 0.0
         self._start: dict[str, float] = {}
-        self.estimates = SimpleNamespace(**controller.estimates())
+        self.out = SimpleNamespace(**controller.estimates())
+        self.out.__dict__.update(controller.outputs())
         self._revision = controller.revision
         self._init_watch()
 
     def variables(self) -> Mapping[str, str]:
         """Causality of every variable."""
         out = dict(CONTROLLER_SLAVE_VARIABLES)
-        out.update({name: "output" for name in vars(self.estimates)})
+        out.update({name: "output" for name in vars(self.out) if name not in out})
         return out
 
     def _path(self, name: str) -> str:
-        if name in ("x_meas", "x_ref", "u"):
+        if name in ("x_meas", "x_ref", "x_d_meas", "u"):
             return name
-        if name in ("mode", "pulses", "outcome", "outcome_reason"):
-            return f"controller.{name}"
-        return f"estimates.{name}"  # f_low too: it changes with the estimates only
+        return f"out.{name}"
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
         """Parameters and input start values, applied at every (re)initialization."""
@@ -326,7 +328,7 @@ class ControllerSlave(_WatchedAttributes):
         for key, value in self._start.items():
             setattr(self, key, value)
         self.u = 0.0
-        self._refresh_estimates()
+        self._refresh_outputs()
         self._refresh()
 
     def restart(self, start_time: float = 0.0) -> None:
@@ -341,16 +343,16 @@ class ControllerSlave(_WatchedAttributes):
         self.u = controller.update(t, self.x_meas, self.x_ref)
         if controller.idle_samples > idle:
             return  # a sample only counted: every output is the one of the last sample
-        if controller.revision != self._revision:
-            self._refresh_estimates()
+        self._refresh_outputs()
         self.values = self._read(self)  # _refresh, inline
 
-    def _refresh_estimates(self) -> None:
+    def _refresh_outputs(self) -> None:
         controller = self.controller
-        values = self.estimates.__dict__
-        values.update(controller.estimates())
-        values["f_low"] = controller.f_low
-        self._revision = controller.revision
+        values = self.out.__dict__
+        if controller.revision != self._revision:
+            values.update(controller.estimates())
+            self._revision = controller.revision
+        values.update(controller.outputs())
 
     def close(self) -> None:
         """Nothing to release."""

@@ -8,13 +8,14 @@ A trace holds named columns, one value per sample t_k = k*T (SI units):
 ``x``    position at t_k, m
 ``v``    velocity at t_k, m/s
 ``x_meas`` position the controller saw at t_k (encoder, noise), m
+``x_d``  motor (drive) position at t_k, m (``x`` on a rigid drive; NaN: the plant has none)
+``x_d_meas`` the motor encoder's reading at t_k, m (NaN: the plant has none)
 ``u``    force applied over [t_k, t_k+1], N (NaN in the last row)
 ``e``    error x_ref - x, m
-``mode`` controller mode after its sample at t_k (papwc.controllers.Mode)
-``pulses`` pulses started so far in the iteration
-``b_hat``, ``f_c_hat`` the controller's estimates after its sample, m/s**2 and N
-``f_low`` the lowest pulse height it plans with after its sample, N
-``outcome``, ``outcome_reason`` the controller's outcome so far and why
+(then)   the controller's outputs after its sample at t_k, the model layer's
+         ``CONTROLLER_OUTPUTS`` but ``u`` (:data:`papwc.controllers.OUTPUT_NAMES`):
+         ``b_hat``, ``f_c_hat`` (m/s**2, N), ``pulses`` started so far, ``mode``
+         (papwc.controllers.Mode), ``f_low`` (N), ``outcome``, ``outcome_reason``
          (:data:`papwc.model.settings.OUTCOMES`, ``OUTCOME_REASONS``)
 ======== ======================================================================
 
@@ -29,17 +30,14 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from papwc.controllers import Mode
+from papwc.controllers import OUTPUT_NAMES, Mode
 from papwc.model.settings import OUTCOME_REASONS, OUTCOMES
 from papwc.output import atomic_open, format_value
 
 __all__ = ["TRACE_COLUMNS", "Trace", "summarize"]
 
 #: Columns of a trace, in the order of its CSV file.
-TRACE_COLUMNS = (
-    "k", "t", "x", "v", "x_meas", "u", "e", "mode", "pulses", "b_hat", "f_c_hat", "f_low",
-    "outcome", "outcome_reason",
-)  # fmt: skip
+TRACE_COLUMNS = ("k", "t", "x", "v", "x_meas", "x_d", "x_d_meas", "u", "e") + OUTPUT_NAMES
 
 
 @dataclass

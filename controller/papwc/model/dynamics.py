@@ -39,7 +39,7 @@ import math
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from .effects.encoder import EncoderNoise
+from .effects.encoder import MOTOR_STREAM, EncoderNoise
 from .effects.flexible import FlexibleMode
 from .effects.lag import ActuatorLag
 from .effects.lugre import LuGre
@@ -111,9 +111,11 @@ class Plant:
     f_s_now : float
         Breakaway force in effect (random stiction), N.
     stick_draws, noise_draws : int
-        Numbers drawn so far by random stiction and by the encoder noise.
+        Numbers drawn so far by random stiction; communication points so far when an
+        encoder is noisy (the table's or the motor's).
     noise : float
-        Encoder noise at the last communication point, m.
+        Encoder noise at the last communication point, m (the motor encoder's is drawn
+        from the counter by :meth:`x_d_meas`).
     h_next : float
         The integrator's step size proposal, s (0: none yet).
     exact : bool
@@ -136,12 +138,17 @@ class Plant:
         self.lag = ActuatorLag(p["tau_u"]) if p["tau_u"] > 0.0 else None
         self.flexible = FlexibleMode(p["m_d"], p["k_t"], p["c_t"]) if p["m_d"] > 0.0 else None
         self.encoder = EncoderNoise(p["noise_std"], seed) if p["noise_std"] > 0.0 else None
+        self.x_d_resolution = p["x_d_resolution"]
+        self.encoder_d = (EncoderNoise(p["x_d_noise_std"], seed, MOTOR_STREAM)
+                          if p["x_d_noise_std"] > 0.0 else None)
+        #: Some encoder is noisy: ``noise_draws`` counts the communication points.
+        self.noisy = self.encoder is not None or self.encoder_d is not None
         self.exact = not (self.stribeck or self.lugre or self.ripple or self.lag
                           or self.flexible)
         #: (integrator steps, stick-slip events) of the last integrated communication step:
         #: the work a step took, which the model layer's ranges and rules bound.
         self.work = (0, 0)
-        self.is_eq1 = self.exact and self.stiction is None and self.encoder is None
+        self.is_eq1 = self.exact and self.stiction is None and not self.noisy
         self._layout()
         if self.is_eq1:
             self.step: Callable[[float, float], str | None] = self._step_exact
@@ -167,8 +174,9 @@ class Plant:
         if self.stiction is not None:
             self.f_s_now = self.stiction.draw(0)
             self.stick_draws = 1
-        if self.encoder is not None:
-            self.noise = self.encoder.draw(0)
+        if self.noisy:
+            if self.encoder is not None:
+                self.noise = self.encoder.draw(0)
             self.noise_draws = 1
 
     def state(self) -> dict[str, float | int]:
@@ -203,6 +211,22 @@ class Plant:
             return quantize(self.x, self.x_resolution)
         return quantize(self.x + self.noise, self.x_resolution)
 
+    def x_d_now(self) -> float:
+        """Motor (drive) position, m: ``x_d`` of the flexible drive, ``x`` on a rigid one."""
+        return self.x if self.flexible is None else self.x_d
+
+    def x_d_meas(self) -> float:
+        """Position read by the motor encoder, m.
+
+        ``quantize(x_d + x_d_noise_std*N_k, x_d_resolution)``: the law of :meth:`x_meas`
+        with the motor encoder's parameters and its own stream of draws, at the same
+        communication point ``k = noise_draws - 1``.
+        """
+        x_d = self.x_d_now()
+        if self.encoder_d is None:
+            return quantize(x_d, self.x_d_resolution)
+        return quantize(x_d + self.encoder_d.draw(self.noise_draws - 1), self.x_d_resolution)
+
     # -- stepping ------------------------------------------------------------------------------
     def step(self, u: float, h: float) -> str | None:  # replaced per instance in __init__
         """Advance over ``h`` (s, > 0) with the force ``u`` (N, finite) held.
@@ -236,8 +260,9 @@ class Plant:
             for name, value in saved.items():
                 setattr(self, name, value)
             return reason
-        if self.encoder is not None:
-            self.noise = self.encoder.draw(self.noise_draws)
+        if self.noisy:
+            if self.encoder is not None:
+                self.noise = self.encoder.draw(self.noise_draws)
             self.noise_draws += 1
         return None
 

@@ -86,6 +86,11 @@ DEVIATION_PARAMETERS: tuple[Variable, ...] = (
              nominal=100.0),
     Variable("noise_std", "Standard deviation of the Gaussian encoder noise added to x before "
              "quantization", "m", 0.0, min=0.0, max=1.0, nominal=1e-7),
+    Variable("x_d_resolution", "Resolution of the motor encoder x_d_meas (0 = ideal encoder)",
+             "m", 0.0, min=0.0, max=1.0, nominal=1e-6),
+    Variable("x_d_noise_std", "Standard deviation of the Gaussian motor-encoder noise added to "
+             "x_d before quantization (its own random stream)", "m", 0.0, min=0.0, max=1.0,
+             nominal=1e-7),
 )
 PLANT_PARAMETERS = PLANT_PARAMETERS + DEVIATION_PARAMETERS
 
@@ -117,6 +122,12 @@ PLANT_OUTPUTS: tuple[Variable, ...] = (
     ),
     Variable("stuck", "Mass at rest (v exactly 0)", "", True, causality="output",
              type="Boolean", initial="calculated"),
+    Variable("x_d", "Motor (drive) position at the end of the last step (x on a rigid drive)",
+             "m", 0.0, causality="output", initial="calculated"),
+    Variable(
+        "x_d_meas", "Motor position read by the motor encoder: x_d plus its noise, rounded to "
+        "x_d_resolution", "m", 0.0, causality="output", initial="calculated",
+    ),
 )
 
 #: Every variable of FrictionPlant.fmu, in the order of its value references.
@@ -210,6 +221,8 @@ OFF_OR_AT_LEAST: dict[str, float] = {
     "f_s_spread": 1e-9,  # 1
     "m_d": 1e-3,  # kg
     "noise_std": 1e-12,  # m
+    "x_d_resolution": 1e-12,  # m
+    "x_d_noise_std": 1e-12,  # m
     "c_t": 1e-6,  # N.s/m
 }
 #: The same for the friction and damping of Eq. (1) when the plant is integrated (with a

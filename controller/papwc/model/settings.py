@@ -261,6 +261,9 @@ CONTROLLER_INPUTS: tuple[Variable, ...] = (
     Variable("maneuver", "Maneuver number: when it changes, the controller starts a new "
              "maneuver from rest, keeping what it has learned (u is 0 until the next step)",
              "", 0, causality="input", type="Integer"),
+    Variable("x_d_meas", "Motor-side position (the plant's motor encoder x_d_meas), read at the "
+             "start of each step; unconnected by default (the table's encoder alone), and no "
+             "controller kind reads it yet", "m", 0.0, causality="input"),
 )
 
 #: Outputs of PulseController.fmu after each step (no direct feedthrough at a

@@ -13,10 +13,13 @@ from __future__ import annotations
 
 from .draws import normal
 
-__all__ = ["STREAM", "EncoderNoise"]
+__all__ = ["MOTOR_STREAM", "STREAM", "EncoderNoise"]
 
 #: Stream number of the noise draws.
 STREAM = 2
+#: Stream number of the motor encoder's noise draws (``x_d_meas``, read from ``x_d`` with
+#: ``x_d_noise_std`` and ``x_d_resolution`` by the same law).
+MOTOR_STREAM = 3
 
 
 class EncoderNoise:
@@ -28,14 +31,17 @@ class EncoderNoise:
         Standard deviation, m, > 0.
     seed : int
         Seed of the draws.
+    stream : int
+        Stream of the draws: :data:`STREAM` (the table's encoder) or :data:`MOTOR_STREAM`.
     """
 
-    __slots__ = ("noise_std", "seed")
+    __slots__ = ("noise_std", "seed", "stream")
 
-    def __init__(self, noise_std: float, seed: int) -> None:
+    def __init__(self, noise_std: float, seed: int, stream: int = STREAM) -> None:
         self.noise_std = noise_std
         self.seed = seed
+        self.stream = stream
 
     def draw(self, k: int) -> float:
         """Noise at communication point number ``k``, m."""
-        return self.noise_std * normal(self.seed, STREAM, k)
+        return self.noise_std * normal(self.seed, self.stream, k)
