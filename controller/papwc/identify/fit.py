@@ -55,6 +55,7 @@ __all__ = [
     "Estimate",
     "Identification",
     "Trial",
+    "check_log",
     "identify",
     "output_error",
     "regression",
@@ -371,6 +372,11 @@ def replay(log: Log, params: Mapping[str, Any]) -> np.ndarray:
 # -- the whole identification ---------------------------------------------------------------
 
 
+def check_log(log: Log) -> None:
+    """Refuse a log without motion, without a breakaway or too short (:class:`LogError`)."""
+    regression(log, analyse(log))
+
+
 def _subset(sim: Simulator, samples: int) -> Simulator:
     """A simulator of every n-th move, with about ``samples`` samples in motion (trials)."""
     moving = int(np.count_nonzero(sim.motion.moved[sim.index - 1]))
@@ -458,6 +464,9 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
             current.why = "the chosen model refitted on every sample"
             say(f"refitted with {dev.name} on every sample ({current.seconds:.3g} s)")
     final = current
+    final.chosen = True
+    if not final.why:
+        final.why = "the model chosen"
     lag = final.values.get("tau_u", 0.0)
     if lag > 0.0:
         bracket = breakaway_bracket(motion, lagged_force(log.u, log.h, lag))

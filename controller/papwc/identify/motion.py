@@ -34,6 +34,9 @@ __all__ = [
 NOISE_FACTOR = 6.0
 #: ... and this many encoder counts.
 COUNT_FACTOR = 1.5
+#: A scatter at rest below this fraction of the largest position (or 1 m) is rounding, not
+#: noise.
+NOISE_FLOOR = 1e-12
 #: Intervals without motion before a sample at rest.
 REST_INTERVALS = 2
 
@@ -117,7 +120,9 @@ def _rest_noise(x: np.ndarray, rest: np.ndarray, q: float, rough: float) -> floa
             dof += b - a - 1
     if dof < 20:
         return rough
-    return float(np.sqrt(max(sum_sq / dof - q * q / 12.0, 0.0)))
+    noise = float(np.sqrt(max(sum_sq / dof - q * q / 12.0, 0.0)))
+    # Rounding of the positions' last digits is no noise.
+    return noise if noise > NOISE_FLOOR * max(float(np.max(np.abs(x))), 1.0) else 0.0
 
 
 def analyse(log: Log) -> Motion:
