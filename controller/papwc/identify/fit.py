@@ -350,13 +350,15 @@ def f_test(base: Trial, bigger: Trial, n_base: int, n_bigger: int) -> tuple[floa
 
 
 def replay(log: Log, params: Mapping[str, Any]) -> np.ndarray:
-    """The whole log simulated from its first position with the force replayed (x_meas, m).
+    """The whole log simulated from its first rest with the force replayed (x_meas, m).
 
     The encoder's count is applied, its noise is not (the machine's noise is not known).
     """
     from papwc.model.dynamics import Plant
 
-    p = {**params, "noise_std": 0.0, "x0": float(log.x[0]), "v0": 0.0}
+    first = int(np.argmax(np.diff(log.x) != 0.0)) if np.any(np.diff(log.x) != 0.0) else 0
+    x0 = float(np.mean(log.x[:max(min(first, 50), 0) + 1]))  # the first rest, averaged
+    p = {**params, "noise_std": 0.0, "x0": x0, "v0": 0.0}
     plant = Plant(p)
     out = np.empty(log.x.size)
     out[0] = quantize(plant.x, p.get("x_resolution", 0.0))

@@ -3,9 +3,9 @@
 A log has one row per sample: the time ``t_k`` (s), the force ``u_k`` (N) held from
 ``t_k`` to ``t_{k+1}`` (zero-order hold) and the table position ``x_k`` (m) read at
 ``t_k``; optionally the motor position (m). Units are SI; the column names are options
-(:class:`Columns`). The samples are evenly spaced: the sample period ``h`` is
-``(t_last - t_first)/(rows - 1)`` and every step must equal it within
-:data:`TIME_TOLERANCE` (relative).
+(:class:`Columns`). The samples are evenly spaced: every time step must equal the median
+step within :data:`TIME_TOLERANCE` (relative); the sample period ``h`` is then
+``(t_last - t_first)/(rows - 1)``.
 
 Every problem is one line naming the file, the row (data rows count from 1; the line of
 the file is row + 1), the column, the value and what is allowed (:class:`LogError`).
@@ -201,16 +201,17 @@ def parse_log(text: str, source: str, columns: Columns = Columns()) -> Log:
     if bad.size:
         k = int(bad[0]) + 1
         raise LogError(f"{source}, row {k + 1} (line {k + 2}), column {columns.time!r}: time "
-                       f"{t[k]!r} s is not after {t[k - 1]!r} s of row {k}; time must increase")
-    h = (t[-1] - t[0]) / (n - 1)
+                       f"{float(t[k])!r} s is not after {float(t[k - 1])!r} s of row {k}; time must increase")
+    h = float(np.median(dt))
     slack = TIME_TOLERANCE * h + 4.0 * np.spacing(np.maximum(np.abs(t[1:]), np.abs(t[:-1])))
     uneven = np.flatnonzero(np.abs(dt - h) > slack)
     if uneven.size:
         k = int(uneven[0]) + 1
         raise LogError(f"{source}, row {k + 1} (line {k + 2}), column {columns.time!r}: the "
-                       f"step from row {k} is {dt[k - 1]!r} s, not the sample period "
+                       f"step from row {k} is {float(dt[k - 1])!r} s, not the sample period "
                        f"{h!r} s (uneven time); the log must be sampled evenly (within "
                        f"{TIME_TOLERANCE:g} of the period)")
+    h = float((t[-1] - t[0]) / (n - 1))
     x_d = data[:, 3].copy() if columns.motor is not None else None
     return Log(t.copy(), data[:, 1].copy(), data[:, 2].copy(), x_d, float(h), source, columns)
 
@@ -221,6 +222,6 @@ def check_travel(log: Log, travel: float) -> None:
     beyond = np.flatnonzero(excursion > travel)
     if beyond.size:
         k = int(beyond[0])
-        raise LogError(f"{log.where(k, log.columns.position)}: position {log.x[k]!r} m is "
+        raise LogError(f"{log.where(k, log.columns.position)}: position {float(log.x[k])!r} m is "
                        f"beyond the travel: {excursion[k]:.6g} m from the start "
-                       f"{log.x[0]!r} m, more than --travel {travel!r} m")
+                       f"{float(log.x[0])!r} m, more than --travel {travel!r} m")

@@ -147,7 +147,7 @@ def analyse(log: Log) -> Motion:
         k = int(np.argmax(np.abs(log.u)))
         raise LogError(f"{log.source}, rows 1-{x.size}, column {column_x!r}: no motion at all: "
                        f"the position never changes by more than {threshold:.3g} m from one "
-                       f"row to the next (the noise); the largest force, {log.u[k]!r} N in "
+                       f"row to the next (the noise); the largest force, {float(log.u[k])!r} N in "
                        f"row {k + 1} (column {column_u!r}), never moved the table")
     n = x.size
     rest = np.zeros(n, dtype=bool)
@@ -161,7 +161,7 @@ def analyse(log: Log) -> Motion:
         at_rest = held[np.argmax(np.abs(log.u[held]))] if held.size else 0
         raise LogError(f"{log.where(int(at_rest), column_u)}: the force never exceeds the "
                        f"breakaway: the table moves, but never from a rest; the largest force "
-                       f"applied at rest, {log.u[at_rest]!r} N here, held it; the log must "
+                       f"applied at rest, {float(log.u[at_rest])!r} N here, held it; the log must "
                        "break the table away (see papwc identify --design)")
     return Motion(dx, moved, threshold, q, noise, rest, starts, held)
 
