@@ -27,8 +27,8 @@ def good_log_text() -> str:
     """A short log of the design's start through the Table 1 plant."""
     u = design(0.01, 300.0, 0.05, 40.0)
     log = apply_to_plant(u, 0.01, {})
-    return _csv([(repr(float(t)), repr(float(f)), repr(float(x))) for t, f, x in zip(log.t, log.u, log.x,
-                                                                 strict=True)])
+    return _csv([(repr(float(t)), repr(float(f)), repr(float(x)))
+                 for t, f, x in zip(log.t, log.u, log.x, strict=True)])
 
 
 def _one_line(exc: pytest.ExceptionInfo) -> str:

@@ -201,7 +201,8 @@ def parse_log(text: str, source: str, columns: Columns = Columns()) -> Log:
     if bad.size:
         k = int(bad[0]) + 1
         raise LogError(f"{source}, row {k + 1} (line {k + 2}), column {columns.time!r}: time "
-                       f"{float(t[k])!r} s is not after {float(t[k - 1])!r} s of row {k}; time must increase")
+                       f"{float(t[k])!r} s is not after {float(t[k - 1])!r} s of row {k}; time "
+                       "must increase")
     h = float(np.median(dt))
     slack = TIME_TOLERANCE * h + 4.0 * np.spacing(np.maximum(np.abs(t[1:]), np.abs(t[:-1])))
     uneven = np.flatnonzero(np.abs(dt - h) > slack)
