@@ -75,9 +75,9 @@ TRIAL_SAMPLES = 400
 #: Most evaluations and the tolerance of the least squares of a model with a deviation
 #: (each evaluation integrates the moves).
 TRIAL_EVALUATIONS = 20
-TRIAL_TOLERANCE = 1e-6
+TRIAL_TOLERANCE = 1e-5
 #: The same for a model fitted again on other samples (from its optimum on the trial's).
-REFIT_EVALUATIONS = 10
+REFIT_EVALUATIONS = 2
 FINAL_TOLERANCE = 1e-8
 
 _UNITS = {v.name: v.unit for v in PLANT_PARAMETERS}
@@ -338,11 +338,11 @@ def intervals(trial: Trial, n_params: int) -> dict[str, tuple[float, float]]:
     return out
 
 
-def f_test(base: Trial, bigger: Trial, n_base: int, n_bigger: int) -> tuple[float, float]:
-    """F statistic and p-value of ``bigger`` against the nested ``base``."""
+def f_test(base: Trial, bigger: Trial, extra: int, n_bigger: int) -> tuple[float, float]:
+    """F statistic and p-value of ``bigger`` (``n_bigger`` parameters) against ``base``,
+    nested in it with ``extra`` parameters fewer."""
     from scipy.stats import f as fisher
 
-    extra = n_bigger - n_base
     dof = max(bigger.n - n_bigger, 1)
     sigma2 = max(bigger.rss / dof, SIGMA_FLOOR**2)
     stat = max(base.rss - bigger.rss, 0.0) / extra / sigma2
@@ -426,17 +426,23 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
         notes.append(f"the deviations' trials fit {len(trial_sim.chunks)} of the "
                      f"{len(sim.chunks)} moves (evenly spread); the chosen model is refitted "
                      "on all")
+    subset_best: Trial | None = None
     while candidates:
         # The current model on the trial samples, for a fair comparison.
         names = current.names
-        current_here = current if trial_sim is sim else _refit(
-            trial_sim, current, bracket, current.label, TRIAL_TOLERANCE)
+        if trial_sim is sim:
+            current_here = current
+        elif subset_best is not None:
+            current_here = subset_best  # the chosen model as fitted on the trial's samples
+        else:
+            current_here = _refit(trial_sim, current, bracket, current.label, TRIAL_TOLERANCE)
         results = []
         for dev in candidates:
             trial = _fit_deviation(trial_sim, current_here, dev, bracket)
-            trial.f_stat, trial.p_value = f_test(current_here, trial, len(names),
-                                                 len(trial.names))
-            ci = intervals(trial, len(trial.names))
+            extra = len([p for p in dev.parameters if p not in names])
+            trial.f_stat, trial.p_value = f_test(current_here, trial, extra,
+                                                 len(names) + extra)
+            ci = intervals(trial, len(names) + extra)
             ok = trial.p_value < ALPHA and all(ci[p][0] > 0.0 for p in dev.parameters)
             if ok:
                 trial.why = (f"F = {trial.f_stat:.4g}, p = {trial.p_value:.3g} < {ALPHA}: "
@@ -454,6 +460,7 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
         if not good:
             break
         dev, best = min(good, key=lambda pair: pair[1].p_value)
+        subset_best = best
         best.chosen = True
         chosen.append(dev.name)
         candidates = [d for d in candidates if d is not dev]
@@ -531,7 +538,7 @@ def _model(names: Sequence[str], values: Mapping[str, float], bracket: Bracket,
 def _refit(sim: Simulator, trial: Trial, bracket: Bracket, label: str, tolerance: float
            ) -> Trial:
     """``trial``'s model fitted again on ``sim``, from its values."""
-    names = trial.names
+    names = trial.names if "m" in trial.names else ("m", *trial.names)
     lower, upper, f_s_of = _model(names, trial.values, bracket, sim.log, sim.motion)
     fixed = {k: v for k, v in trial.values.items() if k not in names}
     return output_error(sim, fixed, names, trial.values, f_s_of, lower=lower, upper=upper,
@@ -540,7 +547,10 @@ def _refit(sim: Simulator, trial: Trial, bracket: Bracket, label: str, tolerance
 
 def _fit_deviation(sim: Simulator, current: Trial, dev: Deviation, bracket: Bracket) -> Trial:
     """Fit ``dev`` on top of ``current``: the best of its starts, then least squares."""
-    names = current.names + tuple(p for p in dev.parameters if p not in current.names)
+    # The mass is held at the current model's value in a trial (the deviations act on the
+    # friction); it is free again in the refit of the chosen model.
+    names = tuple(n for n in current.names if n != "m") + tuple(
+        p for p in dev.parameters if p not in current.names)
     values = dict(current.values)
     lower, upper, f_s_of = _model(names, values, bracket, sim.log, sim.motion)
     best, best_rss = None, math.inf
