@@ -349,15 +349,16 @@ def f_test(base: Trial, bigger: Trial, extra: int, n_bigger: int) -> tuple[float
     return stat, float(fisher.sf(stat, extra, dof))
 
 
-def replay(log: Log, params: Mapping[str, Any]) -> np.ndarray:
+def replay(log: Log, params: Mapping[str, Any], moved: np.ndarray | None = None) -> np.ndarray:
     """The whole log simulated from its first rest with the force replayed (x_meas, m).
 
     The encoder's count is applied, its noise is not (the machine's noise is not known).
+    The start is the mean of the positions before the first interval that ``moved``.
     """
     from papwc.model.dynamics import Plant
 
-    first = int(np.argmax(np.diff(log.x) != 0.0)) if np.any(np.diff(log.x) != 0.0) else 0
-    x0 = float(np.mean(log.x[:max(min(first, 50), 0) + 1]))  # the first rest, averaged
+    first = int(np.argmax(moved)) if moved is not None and moved.any() else 0
+    x0 = float(np.mean(log.x[:min(first, 50) + 1]))  # the first rest, averaged
     p = {**params, "noise_std": 0.0, "x0": x0, "v0": 0.0}
     plant = Plant(p)
     out = np.empty(log.x.size)
@@ -501,7 +502,7 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
                               motion.resolution, "m", "encoder: smallest step of the position"))
     estimates.append(Estimate("noise_std", motion.noise, math.nan, math.nan, "m",
                               "encoder: scatter of the position at rest"))
-    replay_x = replay(log, plant)
+    replay_x = replay(log, plant, motion.moved)
     replay_rms = float(np.sqrt(np.mean((replay_x - log.x) ** 2)))
     bound = max(3.0 * motion.resolution, 2.0 * motion.noise, 1e-9)
     residual_rms = math.sqrt(final.rss / max(final.n, 1))
