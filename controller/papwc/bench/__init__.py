@@ -187,7 +187,7 @@ def median_interleaved(
 
 
 #: Modules that register sections, in the order their sections run.
-SECTION_MODULES = ("plant", "master", "battery", "realism")
+SECTION_MODULES = ("plant", "master", "battery", "realism", "identify")
 
 
 def load_sections() -> list[Section]:
