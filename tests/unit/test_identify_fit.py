@@ -3,32 +3,15 @@
 
 from __future__ import annotations
 
-import random
-
 import numpy as np
 import pytest
 
+from papwc.identify.accuracy import NOISY, TABLE1, draws
 from papwc.identify.excitation import apply_to_plant, design
 from papwc.identify.fit import identify, regression
 from papwc.identify.motion import analyse
 
-#: Table 1 of the paper.
-TABLE1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
-#: The 0.1 um encoder with 0.2 um noise.
-NOISY = {"x_resolution": 1e-7, "noise_std": 2e-7}
 H = 0.01
-
-
-def draws(seed: int, n: int) -> list[dict[str, float]]:
-    """``n`` plants with each parameter uniform in Table 1 +-50 %, and f_s >= 1.1 f_c (a
-    breakaway at least 10 % above the sliding friction, as on a machine; Table 1 has 30 %)."""
-    rng = random.Random(seed)
-    out: list[dict[str, float]] = []
-    while len(out) < n:
-        p = {k: v * rng.uniform(0.5, 1.5) for k, v in TABLE1.items()}
-        if p["f_s"] >= 1.1 * p["f_c"]:
-            out.append(p)
-    return out
 
 
 @pytest.fixture(scope="module")
