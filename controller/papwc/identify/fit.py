@@ -249,9 +249,24 @@ class Simulator:
         self.log = log
         self.motion = motion
         self.chunks = list(chunks)
-        self.index = np.concatenate([np.arange(c.k0 + 1, c.k1 + 1) for c in self.chunks])
-        self.measured = log.x[self.index]
         self._u = [float(f) for f in log.u]
+        self.index = np.concatenate([np.arange(c.k0, c.k1) for c in self.chunks])
+        self.measured = log.x[self.index]
+        #: Where each move's samples start in :attr:`index`.
+        self.starts = np.cumsum([0] + [c.k1 - c.k0 for c in self.chunks[:-1]])
+        self._sizes = np.array([c.k1 - c.k0 for c in self.chunks], dtype=float)
+        #: Samples less one per move (its offset is estimated): the residual's size.
+        self.n = int(self.index.size - len(self.chunks))
+
+    def project(self, r: np.ndarray) -> np.ndarray:
+        """``r`` less its mean over each move: each move's offset estimated by least squares.
+
+        The rest a move starts from is known only through the encoder; an error in it
+        would shift all of the move's samples alike (correlated errors). Removing each
+        move's mean residual fits that offset, so the residual left is the move's shape.
+        """
+        means = np.add.reduceat(r, self.starts) / self._sizes
+        return r - np.repeat(means, self._sizes.astype(int))
 
     def positions(self, params: Mapping[str, Any]) -> np.ndarray:
         """Simulated positions at :attr:`index` (m)."""
@@ -267,7 +282,9 @@ class Simulator:
             plant.v = plant.v_d = 0.0
             plant.f_a = u[chunk.k0 - 1] if chunk.k0 > 0 else 0.0
             step = plant.step
-            for k in range(chunk.k0, chunk.k1):
+            out[i] = chunk.x0
+            i += 1
+            for k in range(chunk.k0, chunk.k1 - 1):
                 reason = step(u[k], h)
                 if reason is not None:
                     raise IdentifyError(f"{self.log.source}: the plant refused to simulate "
@@ -308,7 +325,7 @@ def output_error(sim: Simulator, fixed: Mapping[str, Any], names: Sequence[str],
         return p
 
     def residual(theta: np.ndarray) -> np.ndarray:
-        return sim.positions(params_of(theta)) - sim.measured
+        return sim.project(sim.positions(params_of(theta)) - sim.measured)
 
     began = time.perf_counter()
     res = least_squares(residual, theta0, bounds=(lo, hi), method="trf", x_scale=1.0,
@@ -317,7 +334,7 @@ def output_error(sim: Simulator, fixed: Mapping[str, Any], names: Sequence[str],
     values = params_of(res.x)
     rss = float(np.sum(res.fun**2))
     jac = res.jac / scale[np.newaxis, :]
-    return Trial(label, tuple(names), values, rss, int(sim.measured.size),
+    return Trial(label, tuple(names), values, rss, sim.n,
                  time.perf_counter() - began, jac)
 
 
@@ -382,7 +399,7 @@ def check_log(log: Log) -> None:
 
 def _subset(sim: Simulator, samples: int) -> Simulator:
     """A simulator of every n-th move, with about ``samples`` samples in motion (trials)."""
-    moving = int(np.count_nonzero(sim.motion.moved[sim.index - 1]))
+    moving = int(np.count_nonzero(sim.motion.moved[sim.index[sim.index < sim.motion.moved.size]]))
     if moving <= samples:
         return sim
     step = max(2, int(math.ceil(moving / samples)))
@@ -561,7 +578,7 @@ def _fit_deviation(sim: Simulator, current: Trial, dev: Deviation, bracket: Brac
         if f_s_of is not None:
             p["f_s"] = f_s_of(p)
         p["f_c"] = min(p["f_c"], p["f_s"])
-        rss = float(np.sum((sim.positions(p) - sim.measured) ** 2))
+        rss = float(np.sum(sim.project(sim.positions(p) - sim.measured) ** 2))
         if rss < best_rss:
             best, best_rss = p, rss
     fixed = {k: v for k, v in best.items() if k not in names}
