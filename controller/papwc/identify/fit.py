@@ -67,6 +67,8 @@ ALPHA = 0.01
 #: Smallest standard deviation of a residual, m: the accuracy of the plant's integrator
 #: (papwc.model.dynamics.TOLERANCES), below which an improvement is not one.
 SIGMA_FLOOR = 1e-11
+#: Unit of the residuals the optimizer sees, m (its gradient test is absolute).
+RESIDUAL_UNIT = 1e-6
 #: Relative width added to every interval: the optimizer's tolerance.
 RELATIVE_FLOOR = 1e-6
 #: Most samples in motion that a deviation's trial fit simulates (every n-th move).
@@ -325,15 +327,15 @@ def output_error(sim: Simulator, fixed: Mapping[str, Any], names: Sequence[str],
         return p
 
     def residual(theta: np.ndarray) -> np.ndarray:
-        return sim.project(sim.positions(params_of(theta)) - sim.measured)
+        return sim.project(sim.positions(params_of(theta)) - sim.measured) / RESIDUAL_UNIT
 
     began = time.perf_counter()
     res = least_squares(residual, theta0, bounds=(lo, hi), method="trf", x_scale=1.0,
-                        ftol=tolerance, xtol=tolerance, gtol=tolerance, max_nfev=max_nfev,
+                        ftol=tolerance, xtol=tolerance, gtol=1e-14, max_nfev=max_nfev,
                         diff_step=1e-7)
     values = params_of(res.x)
-    rss = float(np.sum(res.fun**2))
-    jac = res.jac / scale[np.newaxis, :]
+    rss = float(np.sum(res.fun**2)) * RESIDUAL_UNIT**2
+    jac = res.jac * RESIDUAL_UNIT / scale[np.newaxis, :]
     return Trial(label, tuple(names), values, rss, sim.n,
                  time.perf_counter() - began, jac)
 
@@ -460,7 +462,7 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
             extra = len([p for p in dev.parameters if p not in names])
             trial.f_stat, trial.p_value = f_test(current_here, trial, extra,
                                                  len(names) + extra)
-            ci = intervals(trial, len(names) + extra)
+            ci = intervals(trial, len(trial.names))
             ok = trial.p_value < ALPHA and all(ci[p][0] > 0.0 for p in dev.parameters)
             if ok:
                 trial.why = (f"F = {trial.f_stat:.4g}, p = {trial.p_value:.3g} < {ALPHA}: "
@@ -545,7 +547,7 @@ def _model(names: Sequence[str], values: Mapping[str, float], bracket: Bracket,
     if "f_s" in names:
         lower["f_s"], upper["f_s"] = 0.5 * bracket.low, bracket.high
         upper["f_c"] = bracket.high
-    elif "tau_u" in names:
+    elif "tau_u" in names and "v_s" not in values:
         def f_s_of(p: dict) -> float:
             return breakaway_bracket(motion, lagged_force(log.u, log.h, p["tau_u"])).middle
     else:
@@ -556,7 +558,8 @@ def _model(names: Sequence[str], values: Mapping[str, float], bracket: Bracket,
 def _refit(sim: Simulator, trial: Trial, bracket: Bracket, label: str, tolerance: float
            ) -> Trial:
     """``trial``'s model fitted again on ``sim``, from its values."""
-    names = trial.names if "m" in trial.names else ("m", *trial.names)
+    names = ("m", "f_c", "c") + (("v_s", "f_s") if "v_s" in trial.values else ()) + (
+        ("tau_u",) if "tau_u" in trial.values else ())
     lower, upper, f_s_of = _model(names, trial.values, bracket, sim.log, sim.motion)
     fixed = {k: v for k, v in trial.values.items() if k not in names}
     return output_error(sim, fixed, names, trial.values, f_s_of, lower=lower, upper=upper,
@@ -565,10 +568,10 @@ def _refit(sim: Simulator, trial: Trial, bracket: Bracket, label: str, tolerance
 
 def _fit_deviation(sim: Simulator, current: Trial, dev: Deviation, bracket: Bracket) -> Trial:
     """Fit ``dev`` on top of ``current``: the best of its starts, then least squares."""
-    # The mass is held at the current model's value in a trial (the deviations act on the
-    # friction); it is free again in the refit of the chosen model.
-    names = tuple(n for n in current.names if n != "m") + tuple(
-        p for p in dev.parameters if p not in current.names)
+    # A trial fits the deviation's parameters with f_c and c; the mass and the deviations
+    # chosen before are held at the current model's values (they are free again in the refit
+    # of the chosen model).
+    names = ("f_c", "c") + tuple(p for p in dev.parameters if p not in ("f_c", "c"))
     values = dict(current.values)
     lower, upper, f_s_of = _model(names, values, bracket, sim.log, sim.motion)
     best, best_rss = None, math.inf
