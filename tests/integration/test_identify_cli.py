@@ -124,7 +124,7 @@ def test_a_bad_log_is_one_line_and_writes_nothing(tmp_path, empty_cwd, capsys, c
     assert not out.exists() and list(empty_cwd.iterdir()) == []
 
 
-def test_options_that_do_not_go_together_are_refused(tmp_path, capsys):
+def test_options_that_do_not_go_together_are_refused(tmp_path, capsys, friction_plant_fmu):
     out = tmp_path / "id"
     assert main(["identify", "--design", "--fmu", "p.fmu", "--out", str(out)]) == 2
     assert "give exactly one of LOG.csv, --design and --fmu" in capsys.readouterr().err
@@ -132,6 +132,12 @@ def test_options_that_do_not_go_together_are_refused(tmp_path, capsys):
     assert "unknown deviation 'ripple'" in capsys.readouterr().err
     assert main(["identify", "--design", "--out", str(out), "--expect", "f_s=50"]) == 2
     assert "--expect: f_s = 50.0 N: must be >= f_c" in capsys.readouterr().err
+    assert main(["identify", "--fmu", str(friction_plant_fmu), "--start-values", "mass=3",
+                 "--out", str(out)]) == 2
+    assert "--start-values: the FMU has no variable 'mass'" in capsys.readouterr().err
+    assert main(["identify", "--fmu", str(friction_plant_fmu), "--position-variable", "y",
+                 "--out", str(out)]) == 2
+    assert "has no Real variable 'y'" in capsys.readouterr().err
     assert not out.exists()
 
 

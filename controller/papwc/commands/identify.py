@@ -98,7 +98,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                          help="motor position (read and checked; the flexible drive is not "
                               "fitted)")
     parser.add_argument("--deviations", default="stribeck,lag", metavar="LIST",
-                        help="deviations to try: stribeck, lag, both (default) or none")
+                        help="deviations to try, comma-separated: stribeck, lag (default: both), "
+                             "or none")
 
 
 def _check(args: argparse.Namespace) -> tuple[str, tuple[str, ...]]:
@@ -141,7 +142,7 @@ def _check(args: argparse.Namespace) -> tuple[str, tuple[str, ...]]:
 
 def run(args: argparse.Namespace) -> int:
     """Identify a log, design the excitation, or identify an FMU; return 0."""
-    from papwc.identify.excitation import apply_to_fmu, design
+    from papwc.identify.excitation import apply_to_fmu, check_fmu, design
     from papwc.identify.fit import check_log, identify
     from papwc.identify.log_file import Columns, check_travel, read_log
     from papwc.identify.report import (
@@ -159,6 +160,8 @@ def run(args: argparse.Namespace) -> int:
         log = read_log(args.log, columns)
         check_travel(log, args.travel)
         check_log(log)  # no motion, no breakaway, too short: refused before anything is written
+    if mode == "--fmu":
+        check_fmu(args.fmu, args.start_values, args.force_variable, args.position_variable)
     u = None
     if mode != "LOG.csv":
         u = design(args.T, args.f_p_max, args.travel, args.duration, args.expect)

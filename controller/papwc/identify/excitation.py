@@ -26,6 +26,7 @@ import itertools
 import math
 import os
 from collections.abc import Mapping, Sequence
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -43,6 +44,7 @@ __all__ = [
     "SPREAD",
     "apply_to_fmu",
     "apply_to_plant",
+    "check_fmu",
     "design",
     "excitation_rows",
 ]
@@ -182,6 +184,37 @@ def apply_to_plant(u: np.ndarray, h: float, params: Mapping[str, Any]) -> Log:
     n = len(u) + 1
     return Log(np.arange(n) * h, np.append(np.asarray(u, dtype=float), 0.0), np.array(x), None,
                float(h), "the plant", Columns())
+
+
+def check_fmu(fmu: str | os.PathLike, start_values: Mapping[str, Any], force: str = "u",
+              position: str = "x_meas") -> None:
+    """Refuse an FMU that is not FMI 2.0 Co-Simulation or lacks a variable named (FmuError).
+
+    Reads only the model description (before anything is written).
+    """
+    from fmpy import read_model_description
+
+    from papwc.errors import FmuError
+
+    path = Path(fmu)
+    if not path.is_file():
+        raise FmuError(f"FMU file {str(path)!r} " + ("is not a file" if path.exists()
+                                                      else "does not exist"))
+    try:
+        md = read_model_description(str(path))
+    except Exception as exc:  # noqa: BLE001 - fmpy raises plain Exceptions for broken files
+        raise FmuError(f"{path}: cannot read modelDescription.xml: {exc}") from None
+    if md.fmiVersion != "2.0" or md.coSimulation is None:
+        raise FmuError(f"{path}: not an FMI 2.0 Co-Simulation FMU")
+    kinds = {v.name: (v.causality, v.type) for v in md.modelVariables}
+    if kinds.get(force) != ("input", "Real"):
+        raise FmuError(f"{path}: has no Real input {force!r} (the force; --force-variable)")
+    if position not in kinds or kinds[position][1] != "Real":
+        raise FmuError(f"{path}: has no Real variable {position!r} (the position; "
+                       "--position-variable)")
+    for name in start_values:
+        if name not in kinds:
+            raise FmuError(f"{path}: --start-values: the FMU has no variable {name!r}")
 
 
 def apply_to_fmu(fmu: str | os.PathLike, u: np.ndarray, h: float,

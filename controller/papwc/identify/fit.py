@@ -141,6 +141,8 @@ class Trial:
     f_stat: float = math.nan
     chosen: bool = False
     why: str = ""
+    #: The optimizer met its tolerance (else it stopped at its evaluation limit).
+    converged: bool = True
 
 
 @dataclass
@@ -337,7 +339,7 @@ def output_error(sim: Simulator, fixed: Mapping[str, Any], names: Sequence[str],
     rss = float(np.sum(res.fun**2)) * RESIDUAL_UNIT**2
     jac = res.jac * RESIDUAL_UNIT / scale[np.newaxis, :]
     return Trial(label, tuple(names), values, rss, sim.n,
-                 time.perf_counter() - began, jac)
+                 time.perf_counter() - began, jac, converged=res.status != 0)
 
 
 def intervals(trial: Trial, n_params: int) -> dict[str, tuple[float, float]]:
@@ -493,6 +495,10 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
             current.why = "the chosen model refitted on every sample"
             say(f"refitted with {dev.name} on every sample ({current.seconds:.3g} s)")
     final = current
+    if not final.converged:
+        notes.append(f"the final fit ({final.label}) stopped at its limit of "
+                     f"{REFIT_EVALUATIONS} evaluations before its tolerance: its intervals are "
+                     "those of a converged fit and may be too narrow")
     final.chosen = True
     if not final.why:
         final.why = "the model chosen"
