@@ -486,14 +486,13 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
         best.chosen = True
         chosen.append(dev.name)
         candidates = [d for d in candidates if d is not dev]
-        if trial_sim is sim:
-            current = best
-        else:
-            current = _refit(sim, best, bracket, best.label + " (all samples)", FINAL_TOLERANCE)
-            trials.append(current)
-            current.chosen = True
-            current.why = "the chosen model refitted on every sample"
-            say(f"refitted with {dev.name} on every sample ({current.seconds:.3g} s)")
+        # The chosen model with every parameter free (the trial held some), on every move.
+        current = _refit(sim, best, bracket, best.label + " (all free, all moves)",
+                         FINAL_TOLERANCE)
+        trials.append(current)
+        current.chosen = True
+        current.why = "the chosen model refitted, every parameter free, on every move"
+        say(f"refitted with {dev.name} on every move ({current.seconds:.3g} s)")
     final = current
     if not final.converged:
         notes.append(f"the final fit ({final.label}) stopped at its limit of "
