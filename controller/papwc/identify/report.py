@@ -14,6 +14,7 @@ nothing else.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
@@ -83,7 +84,14 @@ class IdentifyFolder:
         remove_file(self.out / INCOMPLETE)
 
     def abort(self, reason: str) -> str:
-        """Mark the folder incomplete with ``reason``; a line saying what was kept. Never raises."""
+        """Mark the folder incomplete with ``reason``; a line saying what was kept. Never raises.
+
+        A file left half-written by the stop (``<name>.tmp``, ``<stem>.tmp.png``) is removed.
+        """
+        for name in OWN_FILES:
+            for path in (self.out / (name + ".tmp"), self.out / (Path(name).stem + ".tmp.png")):
+                with contextlib.suppress(OSError):
+                    path.unlink(missing_ok=True)
         try:
             self.mark(reason)
             marked = f"; see {self.out / INCOMPLETE}"
