@@ -62,7 +62,7 @@ def test_no_deviation_is_reported_where_there_is_none(excitation):
     ident = identify(apply_to_plant(excitation, H, {**plant, **NOISY, "seed": 3}))
     assert ident.chosen == []
     tried = [t for t in ident.trials if t.label.startswith("+")]
-    assert len(tried) == 2 and all(t.p_value >= 0.01 for t in tried)
+    assert len(tried) == 2 and not any(t.chosen for t in tried)
     assert max(abs(e) for e in _errors(ident, plant).values()) < 0.03
 
 
@@ -72,7 +72,7 @@ def test_a_stribeck_velocity_is_found_within_ten_percent(excitation):
     ident = identify(apply_to_plant(excitation, H, {**plant, **NOISY, "seed": 5}))
     assert ident.chosen == ["stribeck"]
     errors = _errors(ident, plant)
-    assert abs(errors["v_s"]) < 0.10, errors
+    assert abs(errors.pop("v_s")) < 0.10, errors
     assert max(abs(e) for e in errors.values()) < 0.03, errors
     assert ident.plant["delta_s"] == 2.0
     assert ident.replay_rms <= 3e-7

@@ -448,16 +448,13 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
         notes.append(f"the deviations' trials fit {len(trial_sim.chunks)} of the "
                      f"{len(sim.chunks)} moves (evenly spread); the chosen model is refitted "
                      "on all")
-    subset_best: Trial | None = None
     while candidates:
         # The current model on the trial samples, for a fair comparison.
         names = current.names
-        if trial_sim is sim:
-            current_here = current
-        elif subset_best is not None:
-            current_here = subset_best  # the chosen model as fitted on the trial's samples
-        else:
-            current_here = _refit(trial_sim, current, bracket, current.label, TRIAL_TOLERANCE)
+        # (From the refit with every parameter free: a trial holds some of them, and a
+        # deviation must not be credited with what freeing them gains.)
+        current_here = current if trial_sim is sim else _refit(
+            trial_sim, current, bracket, current.label, TRIAL_TOLERANCE)
         results = []
         for dev in candidates:
             trial = _fit_deviation(trial_sim, current_here, dev, bracket)
@@ -482,7 +479,6 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
         if not good:
             break
         dev, best = min(good, key=lambda pair: pair[1].p_value)
-        subset_best = best
         best.chosen = True
         chosen.append(dev.name)
         candidates = [d for d in candidates if d is not dev]
