@@ -2,8 +2,10 @@
 
 The position difference ``dx_k = x_{k+1} - x_k`` of each sample interval is compared with
 a threshold set by the encoder: :data:`NOISE_FACTOR` times the standard deviation of the
-differences at rest (estimated robustly: 1.4826 times their median absolute deviation, the
-log being mostly at rest) and :data:`COUNT_FACTOR` counts of the encoder. The table is at
+differences at rest and :data:`COUNT_FACTOR` counts of the encoder. That deviation is first
+1.4826 times the median absolute deviation of all differences, then the standard deviation
+of the differences inside the rests so found (outliers beyond 4 deviations trimmed), and the
+rests are found again with it. The table is at
 rest at sample ``k`` when the :data:`REST_INTERVALS` intervals before it did not move; a
 rest followed by a move is a breakaway, a rest followed by none a held force.
 
@@ -125,6 +127,16 @@ def _rest_noise(x: np.ndarray, rest: np.ndarray, q: float, rough: float) -> floa
     return noise if noise > NOISE_FLOOR * max(float(np.max(np.abs(x))), 1.0) else 0.0
 
 
+def _rests(moved: np.ndarray) -> np.ndarray:
+    """At rest at each sample: the :data:`REST_INTERVALS` intervals before it did not move."""
+    n = moved.size + 1
+    rest = np.zeros(n, dtype=bool)
+    still = ~moved
+    rest[REST_INTERVALS:] = np.all(
+        [still[REST_INTERVALS - 1 - j:n - 1 - j] for j in range(REST_INTERVALS)], axis=0)
+    return rest
+
+
 def analyse(log: Log) -> Motion:
     """Tell the motion of ``log`` from its rests.
 
@@ -149,11 +161,20 @@ def analyse(log: Log) -> Motion:
                        f"the position never changes by more than {threshold:.3g} m from one "
                        f"row to the next (the noise); the largest force, {float(log.u[k])!r} N in "
                        f"row {k + 1} (column {column_u!r}), never moved the table")
-    n = x.size
-    rest = np.zeros(n, dtype=bool)
+    # The differences of the whole log overstate the noise when the table moves in most
+    # intervals: estimate it again from the differences inside the rests found so (their
+    # outliers, small moves taken for rests, trimmed), and find the rests again with it.
+    rest = _rests(moved)
+    inside = rest[1:] & rest[:-1]
+    pool = dx[inside]
+    if pool.size >= 20:
+        spread = 1.4826 * float(np.median(np.abs(pool - np.median(pool))))
+        kept = pool[np.abs(pool - np.median(pool)) <= 4.0 * max(spread, q)]
+        scatter = min(scatter, float(np.std(kept)))
+        threshold = max(NOISE_FACTOR * scatter, COUNT_FACTOR * q)
+        moved = np.abs(dx) > threshold
+        rest = _rests(moved)
     still = ~moved
-    rest[REST_INTERVALS:] = np.all(
-        [still[REST_INTERVALS - 1 - j:n - 1 - j] for j in range(REST_INTERVALS)], axis=0)
     noise = _rest_noise(x, rest, q, noise)
     starts = np.flatnonzero(rest[:-1] & moved)
     held = np.flatnonzero(rest[:-1] & still)
