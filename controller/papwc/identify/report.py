@@ -277,7 +277,8 @@ def report_text(ident: Identification, command: str) -> str:
                                 "none (Eq. (1) explains the log within its noise)") + ".", "",
               "Not tried:"]
     lines += [f"- {name}: {why}" for name, why in NOT_TRIED if name not in tried]
-    lines += [f"- {note}" for note in ident.notes]
+    if ident.notes:
+        lines += ["", "Notes:"] + [f"- {note}" for note in ident.notes]
     verdict = "within" if ident.replay_rms <= ident.replay_bound else "NOT within"
     count = (f" = {ident.replay_rms / motion.resolution:.3g} counts"
              if motion.resolution > 0 else "")
