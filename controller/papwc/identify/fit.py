@@ -18,17 +18,23 @@
    each move is simulated through :class:`papwc.model.dynamics.Plant` from the measured
    rest before it (``v = 0``; the mean of the rest's positions), with the logged force
    replayed, and ``scipy.optimize.least_squares`` minimizes the sum of the squared
-   differences of the simulated and measured positions. Starting every move at its rest
-   keeps the errors of one move from accumulating into the next, and keeps the
-   stick-slip switches (breakaways) out of the parameters' reach.
+   differences of the simulated and measured positions, each move's mean difference removed
+   (its offset, the encoder's error on the rest it starts from, estimated by least squares:
+   :meth:`Simulator.project`). Starting every move at its rest keeps the errors of one move
+   from accumulating into the next, and keeps the stick-slip switches (breakaways) out of
+   the parameters' reach. With the Stribeck curve, ``f_s`` is fitted too (it shapes the
+   sliding friction at low speed), below the smallest force that moved the table.
 4. **Intervals**: 95 % intervals from the Jacobian at the optimum, ``cov = s^2 (J^T J)^-1``,
    with ``s^2`` the residual variance (at least :data:`SIGMA_FLOOR` squared, the
    integrator's accuracy) and Student's t; widened by :data:`RELATIVE_FLOOR` of the value
    (the optimizer's tolerance).
-5. **Deviations** (:func:`identify`): each deviation of :data:`DEVIATIONS` is fitted on top
-   of the plant chosen so far; it is added when the F-test of the nested models rejects
-   "no improvement" at :data:`ALPHA` and its interval excludes 0; the one with the smallest
-   p-value is added first, then the others are tried again on top of it.
+5. **Deviations** (:func:`identify`): each deviation of :data:`DEVIATIONS` is fitted with
+   ``f_c`` and ``c`` on top of the plant chosen so far (its other parameters held), on every
+   n-th move (about :data:`TRIAL_SAMPLES` samples in motion), and compared with that plant
+   refitted on the same moves with every parameter free; it is added when the F-test of the
+   nested models rejects "no improvement" at :data:`ALPHA` and its intervals exclude 0; the
+   one with the smallest p-value is added first, then the others are tried again on top of
+   it. The plant chosen is refitted with every parameter free on every move.
 """
 
 from __future__ import annotations
