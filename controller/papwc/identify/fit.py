@@ -85,7 +85,7 @@ TRIAL_SAMPLES = 400
 TRIAL_EVALUATIONS = 20
 TRIAL_TOLERANCE = 1e-5
 #: The same for a model fitted again on other samples (from its optimum on the trial's).
-REFIT_EVALUATIONS = 2
+REFIT_EVALUATIONS = 5
 FINAL_TOLERANCE = 1e-8
 
 _UNITS = {v.name: v.unit for v in PLANT_PARAMETERS}
