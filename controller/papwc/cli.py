@@ -11,7 +11,8 @@ from papwc import __version__
 from papwc.errors import PapwcError
 
 #: Subcommand modules under papwc.commands, in the order ``papwc --help`` lists them.
-COMMANDS: tuple[str, ...] = ("build", "run", "reproduce", "bench", "battery", "cosim", "hostenv")
+COMMANDS: tuple[str, ...] = ("build", "run", "reproduce", "bench", "battery", "cosim", "hostenv",
+                             "identify")
 
 
 def make_parser() -> argparse.ArgumentParser:

@@ -187,7 +187,7 @@ def median_interleaved(
 
 
 #: Modules that register sections, in the order their sections run.
-SECTION_MODULES = ("plant", "native", "master", "battery", "realism", "cosim")
+SECTION_MODULES = ("plant", "native", "master", "battery", "realism", "cosim", "identify")
 
 
 def load_sections() -> list[Section]:

@@ -1,0 +1,19 @@
+"""Identification of the friction plant from a measured log (``papwc identify``).
+
+A log of a machine (time, force held over each sample, table position) is read and checked
+(:mod:`.log_file`); the motion in it is told apart from the rests and the encoder's count and
+noise are estimated (:mod:`.motion`); ``m``, ``f_c``, ``c`` are started by linear regression on
+the sliding samples, ``f_s`` is bracketed by the rests, then everything is refined by output
+error through :class:`papwc.model.dynamics.Plant` with the force replayed, and the deviations
+the data support are added (:mod:`.fit`). :mod:`.excitation` designs the force to apply to a
+machine and applies it to a plant or an FMU; :mod:`.report` writes ``plant.toml``,
+``identified.csv``, ``report.md`` and its figures.
+"""
+
+from papwc.errors import PapwcError
+
+__all__ = ["IdentifyError"]
+
+
+class IdentifyError(PapwcError):
+    """A log, an option or an FMU cannot be identified: the message says where and why."""

@@ -1,0 +1,228 @@
+"""The measured log: a CSV file of time, force and table position, read and checked.
+
+A log has one row per sample: the time ``t_k`` (s), the force ``u_k`` (N) held from
+``t_k`` to ``t_{k+1}`` (zero-order hold) and the table position ``x_k`` (m) read at
+``t_k``; optionally the motor position (m). Units are SI; the column names are options
+(:class:`Columns`). The samples are evenly spaced: every time step must equal the median
+step within :data:`TIME_TOLERANCE` (relative); the sample period ``h`` is then
+``(t_last - t_first)/(rows - 1)``.
+
+Every problem is one line naming the file, the row (data rows count from 1; the line of
+the file is row + 1), the column, the value and what is allowed (:class:`LogError`).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from papwc.identify import IdentifyError
+from papwc.limits import MAX_INPUT_BYTES, input_path_problem
+
+__all__ = [
+    "MAX_LOG_ROWS",
+    "MIN_LOG_ROWS",
+    "TIME_TOLERANCE",
+    "Columns",
+    "Log",
+    "LogError",
+    "check_travel",
+    "parse_log",
+    "read_log",
+]
+
+#: Most data rows of a log (a 1000 s log at 100 Hz).
+MAX_LOG_ROWS = 100_000
+#: Fewest rows that can hold a move: a rest (3 samples), the breakaway, 3 samples of
+#: sliding, the stop and a rest (2 samples).
+MIN_LOG_ROWS = 10
+#: Largest relative difference of a time step from the sample period.
+TIME_TOLERANCE = 1e-6
+
+
+class LogError(IdentifyError):
+    """A log cannot be identified: the message names the file, row, column and the problem."""
+
+
+@dataclass(frozen=True)
+class Columns:
+    """Names of the log's columns (the motor position is optional: None)."""
+
+    time: str = "time"
+    force: str = "u"
+    position: str = "x"
+    motor: str | None = None
+
+    def needed(self) -> list[tuple[str, str]]:
+        """(what, column name) of every column to read."""
+        out = [("time", self.time), ("force", self.force), ("position", self.position)]
+        if self.motor is not None:
+            out.append(("motor position", self.motor))
+        return out
+
+
+@dataclass
+class Log:
+    """A checked log.
+
+    Attributes
+    ----------
+    t : ndarray
+        Times, s (evenly spaced, increasing).
+    u : ndarray
+        Force held over each sample, N (the last one acts on nothing).
+    x : ndarray
+        Table position at each sample, m.
+    x_d : ndarray or None
+        Motor position, m.
+    h : float
+        Sample period, s.
+    source : str
+        The file (or what made the log), for messages.
+    columns : Columns
+        The names of the columns read.
+    """
+
+    t: np.ndarray
+    u: np.ndarray
+    x: np.ndarray
+    x_d: np.ndarray | None
+    h: float
+    source: str
+    columns: Columns
+
+    def where(self, k: int, column: str) -> str:
+        """``"<source>, row <k+1> (line <k+2>), column '<column>'"`` for sample index ``k``."""
+        return f"{self.source}, row {k + 1} (line {k + 2}), column {column!r}"
+
+
+def read_log(path: str | os.PathLike, columns: Columns = Columns()) -> Log:
+    """Read and check the log CSV at ``path``.
+
+    Raises
+    ------
+    LogError
+        Naming the file, the row and the column: missing, unreadable, not UTF-8 text, a
+        column missing, a value not a number or not finite, time not increasing or not
+        even, too few or too many rows.
+    """
+    path = Path(path)
+    problem = input_path_problem(path)
+    if problem == "no such file":
+        raise LogError(f"{path}: no such log file")
+    if problem is not None:
+        raise LogError(f"{path}: {problem}; give a log file (CSV)")
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(MAX_INPUT_BYTES + 1)
+    except OSError as exc:
+        raise LogError(f"{path}: cannot read the log: {exc.strerror or exc}") from None
+    if len(raw) > MAX_INPUT_BYTES:
+        raise LogError(f"{path}: larger than {MAX_INPUT_BYTES // (1024 * 1024)} MB; a log has "
+                       f"at most {MAX_LOG_ROWS} rows")
+    if b"\0" in raw:
+        raise LogError(f"{path}: a binary file (it holds NUL bytes), not a log (CSV text)")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise LogError(f"{path}: not UTF-8 text: byte 0x{raw[exc.start]:02x} at line {line}; "
+                       "save the log as UTF-8 CSV") from None
+    return parse_log(text, str(path), columns)
+
+
+def _number(text: str, where: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise LogError(f"{where}: {text!r} is not a number") from None
+    if math.isnan(value):
+        raise LogError(f"{where}: {text!r} is NaN; every value must be a finite number")
+    if not math.isfinite(value):
+        raise LogError(f"{where}: {text!r} is not finite; every value must be a finite number")
+    return value
+
+
+def parse_log(text: str, source: str, columns: Columns = Columns()) -> Log:
+    """Check the CSV ``text`` of a log (``source`` names it in messages); see :func:`read_log`."""
+    reader = csv.reader(io.StringIO(text))
+    try:
+        header = next(reader)
+    except StopIteration:
+        raise LogError(f"{source}: empty; a log has a header line and one row per "
+                       "sample") from None
+    except csv.Error as exc:
+        raise LogError(f"{source}, line 1: not CSV: {exc}") from None
+    header = [name.strip() for name in header]
+    index = {}
+    for what, name in columns.needed():
+        if name not in header:
+            raise LogError(f"{source}, line 1: no column {name!r} ({what}); the columns are "
+                           + ", ".join(repr(n) for n in header)
+                           + "; name the column with the option for the " + what)
+        index[name] = header.index(name)
+    names = [name for _, name in columns.needed()]
+    values: list[list[float]] = []
+    try:
+        for row in reader:
+            if not row or all(not cell.strip() for cell in row):
+                continue  # a blank line
+            k = len(values)
+            if k >= MAX_LOG_ROWS:
+                raise LogError(f"{source}: more than {MAX_LOG_ROWS} rows; a log has at most "
+                               f"{MAX_LOG_ROWS} rows (shorten it or sample it slower)")
+            line = reader.line_num
+            cells = []
+            for name in names:
+                i = index[name]
+                where = f"{source}, row {k + 1} (line {line}), column {name!r}"
+                if i >= len(row):
+                    raise LogError(f"{where}: missing (the row has {len(row)} of "
+                                   f"{len(header)} fields)")
+                cells.append(_number(row[i].strip(), where))
+            values.append(cells)
+    except csv.Error as exc:
+        raise LogError(f"{source}, line {reader.line_num}: not CSV: {exc}") from None
+    n = len(values)
+    if n < MIN_LOG_ROWS:
+        raise LogError(f"{source}, rows 1-{n}, column {columns.position!r}: {n} rows are too "
+                       f"short to contain a move; a log needs at least {MIN_LOG_ROWS} (a rest, "
+                       "the breakaway, sliding, the stop, a rest)")
+    data = np.array(values, dtype=float)
+    t = data[:, 0]
+    dt = np.diff(t)
+    bad = np.flatnonzero(~(dt > 0.0))
+    if bad.size:
+        k = int(bad[0]) + 1
+        raise LogError(f"{source}, row {k + 1} (line {k + 2}), column {columns.time!r}: time "
+                       f"{float(t[k])!r} s is not after {float(t[k - 1])!r} s of row {k}; time "
+                       "must increase")
+    h = float(np.median(dt))
+    slack = TIME_TOLERANCE * h + 4.0 * np.spacing(np.maximum(np.abs(t[1:]), np.abs(t[:-1])))
+    uneven = np.flatnonzero(np.abs(dt - h) > slack)
+    if uneven.size:
+        k = int(uneven[0]) + 1
+        raise LogError(f"{source}, row {k + 1} (line {k + 2}), column {columns.time!r}: the "
+                       f"step from row {k} is {float(dt[k - 1])!r} s, not the sample period "
+                       f"{h!r} s (uneven time); the log must be sampled evenly (within "
+                       f"{TIME_TOLERANCE:g} of the period)")
+    h = float((t[-1] - t[0]) / (n - 1))
+    x_d = data[:, 3].copy() if columns.motor is not None else None
+    return Log(t.copy(), data[:, 1].copy(), data[:, 2].copy(), x_d, float(h), source, columns)
+
+
+def check_travel(log: Log, travel: float) -> None:
+    """Refuse a log whose position leaves ``x_0 +- travel`` (m) (:class:`LogError`)."""
+    excursion = np.abs(log.x - log.x[0])
+    beyond = np.flatnonzero(excursion > travel)
+    if beyond.size:
+        k = int(beyond[0])
+        raise LogError(f"{log.where(k, log.columns.position)}: position {float(log.x[k])!r} m is "
+                       f"beyond the travel: {excursion[k]:.6g} m from the start "
+                       f"{float(log.x[0])!r} m, more than --travel {travel!r} m")
