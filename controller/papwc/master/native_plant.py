@@ -177,12 +177,19 @@ def plant_library(unzip_dir: str | os.PathLike | None) -> NativePlantLibrary | N
 
     None for no folder, an FMU without a binary for this platform, a binary that does
     not export :data:`API_SYMBOL` (a pythonfmu FMU) or whose structs are not the model
-    layer's. A binary is loaded once per process.
+    layer's. A folder is looked at, and a binary loaded, once per process.
     """
     if unzip_dir is None:
         return None
-    path = binary_path(unzip_dir)
-    return None if path is None else _load(str(path))
+    key = str(unzip_dir)
+    if key not in _FOUND:
+        path = binary_path(unzip_dir)
+        _FOUND[key] = None if path is None else _load(str(path))
+    return _FOUND[key]
+
+
+#: What :func:`plant_library` found in each extracted FMU of this process.
+_FOUND: dict[str, NativePlantLibrary | None] = {}
 
 
 class NativePlant:
