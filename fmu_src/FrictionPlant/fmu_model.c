@@ -262,3 +262,42 @@ int model_state_check(const void *data, int started, char *msg, size_t len) {
     }
     return 0;
 }
+
+/* ---------------------------------------------------------------------------------------- */
+/* The plant's own functions for a process that loads this binary (papwc's runaway check
+ * replays a run's forces on the plant of the run itself, papwc.master.native_plant). One
+ * table is exported, so the fp_* functions stay hidden (no symbol of the plant can be
+ * interposed by a host's) and the caller can check the layout of the structs it passes:
+ * their sizes and "name:TYPE" of each field in order, separated by spaces. */
+typedef struct {
+    int version;          /* PLANT_API_VERSION */
+    size_t params_size;   /* sizeof(FpParams) */
+    size_t state_size;    /* sizeof(FpState) */
+    size_t outputs_size;  /* sizeof(FpOutputs) */
+    const char *params;   /* the fields of FpParams */
+    const char *state;    /* the fields of FpState */
+    const char *outputs;  /* the fields of FpOutputs */
+    void (*defaults)(FpParams *p);
+    int (*check)(const FpParams *p, char *msg, size_t len);
+    void (*reset)(FpState *s, const FpParams *p);
+    int (*step)(FpState *s, const FpParams *p, double u, double h, char *msg, size_t len);
+    int (*state_check)(const FpState *s, char *msg, size_t len);
+    void (*outputs_of)(const FpState *s, const FpParams *p, FpOutputs *y);
+} PlantApi;
+
+#define PLANT_API_VERSION 1
+
+#define FIELD_OF_VARIABLE(name, vr, type, start, lo, hi, lo_open, hi_open) #name ":" #type " "
+#define FIELD_OF_OUTPUT(name, vr, type) #name ":" #type " "
+#define FIELD_OF_STATE(name, type) #name ":" #type " "
+
+static const PlantApi plant_api = {
+    PLANT_API_VERSION, sizeof(FpParams), sizeof(FpState), sizeof(FpOutputs),
+    FP_PARAMETERS(FIELD_OF_VARIABLE), FP_STATE_FIELDS(FIELD_OF_STATE),
+    FP_OUTPUTS(FIELD_OF_OUTPUT),
+    fp_defaults, fp_check, fp_reset, fp_step, fp_state_check, fp_outputs,
+};
+
+FMI2_Export const PlantApi *papwc_plant_api(void);
+
+const PlantApi *papwc_plant_api(void) { return &plant_api; }

@@ -91,6 +91,7 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         Exceptions are caught and recorded, never raised.
     """
     from papwc.master import summarize
+    from papwc.master.native_plant import plant_library
     from papwc.master.pulses import pulse_ratio
     from papwc.runner import RunTimeout, run_scenario
 
@@ -107,7 +108,8 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         for result in results:
             settings = result.settings
             iterations = []
-            ratios = pulse_ratio(result.traces, scenario.plant, scenario.maneuver.T)
+            ratios = pulse_ratio(result.traces, scenario.plant, scenario.maneuver.T,
+                                 plant_library(unzip_dir))
             for trace, ratio in zip(result.traces, ratios, strict=True):
                 metrics = summarize(trace, settings.tolerance)
                 iterations.append({"iteration": trace.iteration, **metrics,

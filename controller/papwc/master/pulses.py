@@ -16,7 +16,10 @@ model layer's :class:`papwc.model.dynamics.Plant` replayed with the trace's
 forces), over the same samples, so that a deviation which makes every pulse
 longer (or a drive still ringing from the last one) does not count against the
 controller. The height is at least the breakaway force in effect then (random
-stiction draws it anew at every stop; ripple makes it depend on x).
+stiction draws it anew at every stop; ripple makes it depend on x). A run on a native
+FrictionPlant.fmu is replayed on that FMU's own C plant, called in process
+(:mod:`papwc.master.native_plant`; bit for bit the model layer's, in microseconds a step
+instead of milliseconds with a deviation).
 
 :func:`pulse_ratio` gives, per iteration, the largest ratio of a pulse's
 displacement to that bound (> 1: a runaway pulse).
@@ -27,11 +30,14 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from papwc.controllers import Mode
 from papwc.master.trace import Trace
 from papwc.model.plant import PLANT_DEFAULTS
+
+if TYPE_CHECKING:
+    from papwc.master.native_plant import NativePlantLibrary
 
 __all__ = ["ROW_COLUMNS", "Pulse", "PulseBound", "pulse_ratio", "pulses_of"]
 
@@ -103,15 +109,24 @@ class PulseBound:
         The run's plant parameters (scenario ``[plant]`` names; missing ones default).
     T : float
         Sample period, s.
+    library : NativePlantLibrary, optional
+        The C plant of the run's native FMU (:func:`papwc.master.native_plant.plant_library`):
+        the replay steps it instead of the model layer's Plant (the same numbers).
     """
 
-    def __init__(self, plant: Mapping[str, Any], T: float) -> None:
+    def __init__(self, plant: Mapping[str, Any], T: float,
+                 library: NativePlantLibrary | None = None) -> None:
         p = {**PLANT_DEFAULTS, **plant}
         self.q = float(p["x_resolution"])
         self.T = float(T)
         self.params = dict(p)
+        self.library = library
 
     def _plant(self):
+        if self.library is not None:
+            from papwc.master.native_plant import NativePlant
+
+            return NativePlant(self.library, self.params)
         from papwc.model.dynamics import Plant
 
         return Plant(self.params)
@@ -234,6 +249,11 @@ class _Replay:
         return abs(probe.x - x0)
 
 
-def pulse_ratio(traces: Sequence[Trace], plant: Mapping[str, Any], T: float) -> list[float]:
-    """Per trace, the largest ratio of a pulse's displacement to its bound (see the module)."""
-    return PulseBound(plant, T).ratios(traces)
+def pulse_ratio(traces: Sequence[Trace], plant: Mapping[str, Any], T: float,
+                library: NativePlantLibrary | None = None) -> list[float]:
+    """Per trace, the largest ratio of a pulse's displacement to its bound (see the module).
+
+    ``library``: the C plant of the run's native FMU, replayed instead of Plant (see
+    :class:`PulseBound`).
+    """
+    return PulseBound(plant, T, library).ratios(traces)
