@@ -38,6 +38,7 @@ from fmpy.fmi2 import FMU2Slave
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from papwc.master.native_plant import FpParams
 from papwc.model.dynamics import Plant
 from papwc.model.plant import PLANT_DEFAULTS
 
@@ -268,9 +269,9 @@ def test_each_refusal_is_an_error_or_a_discard_never_ok(friction_plant_unzipped:
         "another FMU's": data[:guid_at + 1] + b"0" + data[guid_at + 2:],
     }
     # the model data follows the marker (8 bytes), the GUID (64) and the phase and time (16):
-    # first the parameters (m first), then the plant's state (x first, after 20 doubles and
-    # the Integer seed, padded to 168 bytes)
-    m_at, x_at = 8 + 64 + 16, 8 + 64 + 16 + 168
+    # first the parameters (FpParams, m first), then the plant's state (FpState, x first)
+    m_at = 8 + 64 + 16  # after the header: m is FpParams' first field, the state follows it
+    x_at = m_at + ctypes.sizeof(FpParams)
     assert struct.unpack_from("<d", data, m_at) == (150.0,)
     assert struct.unpack_from("<d", data, x_at) == (fmu.outputs()[0],)
     bad_states["invalid parameter m = -1"] = (data[:m_at] + struct.pack("<d", -1.0)
@@ -596,7 +597,7 @@ def test_ten_thousand_instances_do_not_grow_the_memory(friction_plant_unzipped: 
                  "fmi2FreeInstance", "fmi2SetReal", "fmi2GetFMUstate", "fmi2FreeFMUstate"):
         getattr(library, name).argtypes = None
     guid = md.guid.encode()
-    vr = (ctypes.c_uint * 1)(21)
+    vr = (ctypes.c_uint * 1)(*[v.valueReference for v in md.modelVariables if v.name == "u"])
     u = (ctypes.c_double * 1)(300.0)
 
     def cycle() -> None:
