@@ -155,6 +155,10 @@ class PulseControllerBase(Controller):
         """Lowest pulse height it plans with now, N: one sample at it is its smallest pulse."""
         return min(self.f_p_floor, self.settings.f_p_max)
 
+    def budget_spent(self) -> bool:
+        """Whether this maneuver's pulse budget (``max_pulses``) is spent."""
+        return self.seq.pulses >= self.max_pulses
+
     def precision(self, e: float) -> float:
         """Relative error expected of the move for error e (m): how exactly e need be known."""
         return 0.1

@@ -293,7 +293,7 @@ class PulseSequencer:
             self.released = False
             self.outcome = Outcome.ACTIVE
             return self.coarse(x_ref - self.x_prev)
-        if self.guarded and self.pulses >= self.max_pulses:
+        if self.guarded and law.budget_spent():
             return self.stop(Reason.PULSE_BUDGET)
         self.refusal = Reason.NO_MOVE_HELPS
         n, f_p = law.plan_pulse(e)
