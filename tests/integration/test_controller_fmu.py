@@ -257,8 +257,8 @@ def test_the_kind_is_a_string_parameter(controller: FmuInstance, kind: str) -> N
     controller.init(kind=kind, x_ref=0.01)
     assert controller.get("kind") == kind
     first = make_controller(ControllerSettings(kind=kind), T).update(0.0, 0.0, 0.01)
-    assert sample(controller, 0.0, 0.0) == first > 0.0  # the first pulse of that kind
-    assert controller.get("pulses") == 1
+    assert sample(controller, 0.0, 0.0) == first > 0.0  # the first pulse (pid: force) of that kind
+    assert controller.get("pulses") == (0 if kind == "pid" else 1)  # a PID fires no pulses
     assert controller.logged(FMI2_ERROR) == []
 
 
@@ -289,7 +289,8 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
     ("name", "value", "expected"),
     [
         ("K_c", 2.5, "parameter K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"),
-        ("kind", "bogus", "parameter kind = 'bogus': must be one of 'exact', 'papwc', 'pwc'"),
+        ("kind", "bogus", "parameter kind = 'bogus': must be one of 'exact', 'papwc', 'pid', "
+                                 "'pwc'"),
         ("k_p", -5.0, "parameter k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m; -1 selects "
                       "the default"),
         ("T", 0.0, "parameter T = 0.0 s: must satisfy 1e-09 <= T <= 1000 s"),
