@@ -216,7 +216,16 @@ class PidController(Controller):
         return abs(e - math.copysign(d, v)) <= self.settings.tolerance
 
     def _decide(self, x_ref: float) -> float:
-        """At rest: the base settles or keeps averaging; else the PID acts, or stops hunting."""
+        """At rest: the base settles or keeps averaging; else the PID acts, or stops hunting.
+
+        A rest within the tolerance read while the PID pushes is not judged: the force is
+        released and the base's force-free rest test (which tells noise from a rest) judges.
+        """
+        if (self.mode == Mode.COARSE and not self._released
+                and abs(x_ref - self._x_hat()) <= self.settings.tolerance):
+            self._released = True
+            self._ring_n = 0
+            return 0.0
         u = super()._decide(x_ref)
         if self.mode != Mode.COARSE or not self.arrived():
             return u
