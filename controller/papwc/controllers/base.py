@@ -65,6 +65,8 @@ class PulseControllerBase(Controller):
     """
 
     kind = "base"
+    #: The sequencer of the kind (a subclass may change its coarse move or its decisions).
+    sequencer_class = PulseSequencer
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
         super().__init__(settings, T)
@@ -83,7 +85,7 @@ class PulseControllerBase(Controller):
         self.rest = RestDetector(settings.rest_band, settings.rest_samples,
                                  settings.rest_auto, self.mode_samples)
         self.trust = TrustRegion(self.trust0(settings), self.guarded, self.mode_samples > 0)
-        self.seq = PulseSequencer(self, self.rest, self.trust)
+        self.seq = self.sequencer_class(self, self.rest, self.trust)
 
     # -- the interface -----------------------------------------------------------------
     def reset(self) -> None:
