@@ -186,6 +186,23 @@ def test_fmu_controller_equals_the_python_controller_bit_for_bit(
         assert in_process.seq.k_p == 20000.0 and in_process.f_p_floor == 120.0
 
 
+@pytest.mark.parametrize("timing", ["immediate", "delayed"])
+@pytest.mark.parametrize("T_pid", [0.01, 0.001])
+def test_fmu_pid_equals_the_python_pid_bit_for_bit(pulse_controller_fmu: Path, paper: Scenario,
+                                                   T_pid: float, timing: str) -> None:
+    """The PID kind (kind_code 4 selects it too) through PulseController.fmu: every column of
+    two iterations equal to the Python PID's run; it fires no pulses."""
+    settings = ControllerSettings(kind="pid", f_p_max=300.0, tolerance=1e-6, m_est=150.0,
+                                  f_c_est=80.0)
+    maneuver = dataclasses.replace(paper.maneuver, x_ref=1e-3, T=T_pid, duration=1.0,
+                                   iterations=2, timing=timing)
+    with controller_fmu(pulse_controller_fmu, settings, maneuver.T) as controller:
+        result = run_closed_loop(physics(paper.plant), controller, maneuver, settings)
+    assert_same_runs(result, python_run(settings, paper.plant, maneuver))
+    assert all(tr.column("pulses")[-1] == 0 for tr in result.traces)
+    assert Mode.COARSE in result.traces[0].column("mode")
+
+
 @pytest.mark.parametrize("variant", ["pwc", "papwc_inf", "exact"])
 def test_fmu_controller_around_the_plant_fmu_equals_the_python_loop(
     pulse_controller_fmu: Path, friction_plant_fmu: Path, paper: Scenario, variant: str
@@ -257,8 +274,8 @@ def test_the_kind_is_a_string_parameter(controller: FmuInstance, kind: str) -> N
     controller.init(kind=kind, x_ref=0.01)
     assert controller.get("kind") == kind
     first = make_controller(ControllerSettings(kind=kind), T).update(0.0, 0.0, 0.01)
-    assert sample(controller, 0.0, 0.0) == first > 0.0  # the first pulse of that kind
-    assert controller.get("pulses") == 1
+    assert sample(controller, 0.0, 0.0) == first > 0.0  # the first pulse (pid: force) of that kind
+    assert controller.get("pulses") == (0 if kind == "pid" else 1)  # a PID fires no pulses
     assert controller.logged(FMI2_ERROR) == []
 
 
@@ -289,7 +306,8 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
     ("name", "value", "expected"),
     [
         ("K_c", 2.5, "parameter K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"),
-        ("kind", "bogus", "parameter kind = 'bogus': must be one of 'exact', 'papwc', 'pwc'"),
+        ("kind", "bogus", "parameter kind = 'bogus': must be one of 'exact', 'papwc', 'pid', "
+                                 "'pwc'"),
         ("k_p", -5.0, "parameter k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m; -1 selects "
                       "the default"),
         ("T", 0.0, "parameter T = 0.0 s: must satisfy 1e-09 <= T <= 1000 s"),

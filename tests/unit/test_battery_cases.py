@@ -116,4 +116,18 @@ def test_the_realism_battery_is_valid() -> None:
                      "noise"]
     assert len(runs) == len(names) * 3 * 5
     assert not [r.error for r in runs if r.error]
-    assert [t["kind"] for t in b.data["controller"]] == ["pwc", "papwc", "exact"]
+    assert [t["kind"] for t in b.data["controller"]] == ["pwc", "papwc", "exact", "pid"]
+
+
+@pytest.mark.parametrize("name", ["realism", "realism_mc", "realism_mc_lugre"])
+def test_the_1_khz_twin_of_a_realism_battery_runs_its_pid_on_the_same_plants(name) -> None:
+    at_100hz = plan_runs([load_battery(scenario_file(f"{name}.toml"))])
+    at_1khz = plan_runs([load_battery(scenario_file(f"{name}_1khz.toml"))])
+    assert [r.run_id for r in at_1khz] == [r.run_id for r in at_100hz]
+    assert all(a.data["plant"] == b.data["plant"] for a, b in zip(at_100hz, at_1khz,
+                                                                  strict=True))
+    assert not [r.error for r in at_1khz if r.error]
+    pid = [t for t in at_100hz[0].data["controller"] if t["kind"] == "pid"]
+    (fast,) = at_1khz[0].data["controller"]
+    assert at_100hz[0].data["maneuver"]["T"] == 0.01 and at_1khz[0].data["maneuver"]["T"] == 1e-3
+    assert [{**t, "label": ""} for t in pid] == [{**fast, "label": ""}]

@@ -147,9 +147,9 @@ def test_registry_makes_each_kind_and_refuses_an_unknown_one():
         ctl = make_controller(ControllerSettings(kind=kind), T)
         assert type(ctl) is cls and isinstance(ctl, Controller) and ctl.kind == kind
         assert ctl.revision == 0 and ctl.mode == Mode.SETTLED
-    with pytest.raises(ValueError, match="controller kind 'pid' is unknown; known kinds: "
-                                         "exact, papwc, pwc"):
-        make_controller(ControllerSettings(kind="pid"), T)
+    with pytest.raises(ValueError, match="controller kind 'lqr' is unknown; known kinds: "
+                                         "exact, papwc, pid, pwc"):
+        make_controller(ControllerSettings(kind="lqr"), T)
 
 
 @pytest.mark.parametrize("kind", ["pwc", "papwc", "exact"])

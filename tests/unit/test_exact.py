@@ -386,3 +386,54 @@ def test_a_fit_that_ran_into_c_0_is_freed_by_a_fresh_start():
     m, f_c, c = est.params()
     assert m == pytest.approx(150.0, rel=1e-5) and f_c == pytest.approx(100.0, rel=1e-6)
     assert c == pytest.approx(700.0, rel=1e-4)
+
+
+# -- planning on the evidence of the breakaway force ------------------------------------------
+def test_a_maneuver_after_a_learned_one_starts_with_a_pulse_for_the_lowest_breakaway():
+    """Where the model's plan finds no pulse that helps at the start of a maneuver, one
+    sample is planned for the lowest breakaway force still possible: above the highest
+    height that did not move since the table last moved, moving at most trust*|e| if the
+    table broke away there; a pulse that did not move raises that height, one that moved
+    forgets it (the breakaway is drawn anew)."""
+    ctl = _true_model_controller()
+    for f, d in [(300.0, 2e-4), (200.0, 3e-5), (150.0, 2e-5)]:
+        ctl.learn(3, f, d)
+    ctl.misses, ctl.errors = 3, [2.0, 2.0]  # a rejected model ...
+    ctl.estimator.rel_misfit = 0.8
+    e = 1e-6
+    ctl.seq.pulses = 1
+    assert ctl.plan_pulse(e)[1] == 0.0  # ... refuses within a maneuver
+    ctl.reset()
+    ctl.misses = 3
+    n, f_p = ctl.plan_pulse(e)  # at the start of a maneuver: a pulse on the evidence
+    f_b = ctl.f_b_low()
+    assert n == 1 and f_p > f_b > 0.0
+    assert ctl.lowest_breakaway_move(f_p, f_b) <= ctl.trust() * e * (1 + 1e-9)
+    assert ctl.predict(n, f_p) == ctl.lowest_breakaway_move(f_p, f_b)
+    ctl.seq.pred = ctl.predict(n, f_p)
+    ctl.learn(n, f_p, 0.0)  # it did not move: the breakaway lies above it
+    assert ctl.f_lb == f_p and ctl.f_b_low() == f_p
+    ctl.seq.pulses = 1
+    n2, f2 = ctl.plan_pulse(e)  # the next one goes on from there
+    assert n2 == 1 and f2 > f_p
+    ctl.seq.pred = ctl.predict(n2, f2)
+    ctl.learn(n2, f2, 0.6 * ctl.seq.pred)  # it moved: the table breaks away anew
+    assert ctl.f_lb == 0.0 and ctl.implied == [f_p]
+
+
+def test_a_pulse_on_the_evidence_that_crept_is_evidence_not_the_end():
+    """A one-sample pulse on the evidence that moved far less than even a breakaway at the
+    lowest force would move it (pre-sliding, a creep) raises the lower bound like one that
+    did not move; the maneuver goes on."""
+    ctl = _true_model_controller()
+    for f, d in [(300.0, 2e-4), (200.0, 3e-5), (150.0, 2e-5)]:
+        ctl.learn(3, f, d)
+    ctl.misses, ctl.errors = 3, [2.0, 2.0]
+    ctl.estimator.rel_misfit = 0.8
+    n, f_p = ctl.plan_pulse(1e-6)
+    assert f_p > 0.0 and ctl._planned == (1, f_p, ctl.predict(n, f_p))  # on the evidence
+    ctl.seq.pred = ctl.predict(n, f_p)
+    ctl.learn(n, f_p, 0.1 * ctl.seq.pred)
+    assert ctl.f_lb == f_p and ctl.implied == []
+    ctl.seq.pulses = 1
+    assert ctl.plan_pulse(1e-6)[1] > f_p

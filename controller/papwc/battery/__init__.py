@@ -107,9 +107,16 @@ Outputs of :func:`run_battery` in the output folder:
   metrics of :func:`papwc.recording.summarize`, ``success``, ``status`` and
   ``message``; ``last_iteration`` marks each controller's final row.
 - ``runs.csv`` -- one row per run with its status and every resolved parameter.
+- ``pulses.csv`` -- every pulse of every run, controller and iteration: the run's
+  battery, id, hash (and case), then the columns of ``papwc run``'s pulses.csv (its
+  error, displacement, the runaway bound and the ratio to it).
+- ``spec.csv`` -- per battery, case and controller the figures of the spec
+  (:func:`papwc.battery.report.spec_rows`): within 1 um and within one count, settle
+  median and p95, runaway pulses at abs(e) >= 1 um and below, the largest runaway move,
+  maneuvers that ended farther, false ``settled``, ``time_ended``.
 - ``summary.md`` -- per battery (and case) and controller: success rate, median,
   95th percentile and maximum of |final error|, pulses and settle time, in the
-  last iteration.
+  last iteration; then the spec table (``spec.csv``).
 - ``final_error_<battery>.png`` -- distribution (empirical CDF) of |final error|
   per controller on a log axis.
 """

@@ -33,6 +33,9 @@ from papwc.output import create_new, lock_folder, os_error_text
 JOURNAL_NAME = "journal.jsonl"
 #: Version of the journal's record layout.
 JOURNAL_FORMAT = 2
+#: Numbers every row of a controller's ``pulses`` holds (papwc run's pulses.csv columns).
+_PULSE_KEYS = ("iteration", "pulse", "t_s", "samples", "amplitude_N", "e_m", "d_m",
+               "smallest_m", "bound_m", "ratio")
 #: Warnings about skipped lines kept per journal (the rest are counted).
 _WARNINGS_KEPT = 20
 
@@ -71,6 +74,10 @@ def record_problem(obj) -> str | None:
             return "a controller lacks label, kind, tolerance, error or iterations"
         if "warning" in c and not isinstance(c["warning"], str):
             return "a controller's warning is not a string"
+        if "pulses" in c and not (isinstance(c["pulses"], list) and all(
+                isinstance(p, dict) and all(_is_number(p.get(k)) for k in _PULSE_KEYS)
+                for p in c["pulses"])):
+            return "a controller's pulses are not a list of pulse rows"
         for it in c["iterations"]:
             if not isinstance(it, dict) or not isinstance(it.get("error"), str) or not (
                     isinstance(it.get("iteration"), int)

@@ -1,4 +1,5 @@
-"""The battery's results: results.csv, runs.csv, summary.md and the plots."""
+"""The battery's results: results.csv, runs.csv, pulses.csv, spec.csv, summary.md and the
+plots."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ from pathlib import Path
 from papwc.battery.plan import RunSpec, controller_tables, get_field
 from papwc.battery.schema import Battery
 from papwc.controllers.settings import ControllerSettings
+from papwc.master.pulses import ROW_COLUMNS
 from papwc.output import save_figure
 from papwc.scenario import (
     PLANT_FIELDS,
@@ -24,6 +26,14 @@ METRICS = ("final_error_m", "pulses", "settle_time_s", "limit_cycle", "cycle_p2p
            "b_hat", "f_c_hat", "outcome", "outcome_reason", "pulse_ratio", "ends_farther")
 #: A pulse whose ratio exceeds 1 by more than this (rounding of the replayed plant) ran away.
 RATIO_SLACK = 1e-9
+#: Error that separates the spec's two classes of pulses, and its first success band, m: a
+#: pulse fired at abs(e) >= NEAR_M must never run away; below, a share of them may.
+NEAR_M = 1e-6
+#: Columns of the spec table (spec.csv; summary.md shows them per battery), see spec_rows.
+SPEC_COLUMNS = ("battery", "case", "controller", "kind", "runs", "errors", "within_1um",
+                "counted_runs", "within_count", "settle_median_s", "settle_p95_s",
+                "pulses_far", "runaway_far", "pulses_near", "runaway_near",
+                "largest_runaway_m", "maneuvers", "farther", "false_settled", "time_ended")
 
 
 def _label_of(table: dict, i: int) -> str:
@@ -109,9 +119,133 @@ def _fmt(x: float, spec: str) -> str:
     return "–" if isinstance(x, float) and math.isnan(x) else format(x, spec)
 
 
+def pulse_rows(runs: list[RunSpec], records: dict, has_cases: bool) -> list[dict]:
+    """Rows of pulses.csv: every pulse of every run, controller and iteration, in run order.
+
+    The columns of ``papwc run``'s pulses.csv (:data:`papwc.runner.PULSE_COLUMNS`) after
+    the run's battery, id, hash (and case).
+    """
+    out = []
+    for spec in runs:
+        base = {"battery": spec.battery, "run_id": spec.run_id, "run_hash": spec.run_hash}
+        if has_cases:
+            base["case"] = spec.case
+        for c in records[(spec.battery, spec.run_id)]["controllers"]:
+            out += [{**base, "controller": c["label"], "kind": c["kind"], **p}
+                    for p in c.get("pulses", [])]
+    return out
+
+
+def _runaway(pulse: dict) -> bool:
+    return float(pulse["ratio"]) > 1.0 + RATIO_SLACK
+
+
+def spec_rows(batteries: list[Battery], runs: list[RunSpec], records: dict,
+              rows: list[dict]) -> list[dict]:
+    """The spec's figures per battery, case and controller (keys :data:`SPEC_COLUMNS`).
+
+    From the last iteration of each run (``rows``: :func:`result_rows`): ``runs``,
+    ``errors`` (status error), ``within_1um`` (runs with status ok and abs(final error)
+    <= 1 um), ``counted_runs`` and ``within_count`` (of the runs whose plant has an encoder
+    count ``x_resolution`` > 0, those ending within one count), ``settle_median_s`` and
+    ``settle_p95_s`` (over the runs with status ok, the settle time of a run that ended
+    ``settled``, inf for one that did not), ``false_settled`` and ``time_ended``. Over every
+    iteration: ``pulses_far`` and ``runaway_far`` (pulses that moved, fired at abs(e) >= 1
+    um, and those of them beyond the bound max(1.5*abs(e) + one count, the smallest pulse)),
+    ``pulses_near`` and ``runaway_near`` (the same below 1 um), ``largest_runaway_m`` (the
+    largest abs(displacement) of a runaway pulse, 0 without one), ``maneuvers`` and
+    ``farther`` (iterations, and those that ended farther from the target than they started).
+    """
+    import statistics
+
+    import numpy as np
+
+    by_key = {(s.battery, s.run_id): s for s in runs}
+    groups: dict[tuple, dict] = {}
+    for r in rows:
+        spec = by_key[(r["battery"], r["run_id"])]
+        key = (r["battery"], r.get("case", ""), r["controller"])
+        g = groups.setdefault(key, {"kind": r["kind"], "last": [], "all": [], "pulses": []})
+        g["all"].append(r)
+        if r["last_iteration"]:
+            q = get_field(spec.data, "plant.x_resolution")
+            g["last"].append((r, float(q) if q is not None else 0.0))
+    for spec in runs:
+        for c in records[(spec.battery, spec.run_id)]["controllers"]:
+            key = (spec.battery, spec.case, c["label"])
+            if key in groups:
+                groups[key]["pulses"] += c.get("pulses", [])
+    out = []
+    for (battery, case, label), g in groups.items():
+        ok = [(r, q) for r, q in g["last"] if r["status"] == "ok"]
+        counted = [(r, q) for r, q in ok if q > 0.0]
+        settle = [r["settle_time_s"] if r.get("outcome") == "settled" else math.inf
+                  for r, _ in ok]
+        moving = [p for p in g["pulses"] if float(p["d_m"]) != 0.0]
+        far = [p for p in moving if abs(float(p["e_m"])) >= NEAR_M]
+        near = [p for p in moving if not abs(float(p["e_m"])) >= NEAR_M]
+        runaway = [p for p in moving if _runaway(p)]
+        out.append({
+            "battery": battery, "case": case, "controller": label, "kind": g["kind"],
+            "runs": len(g["last"]), "errors": len(g["last"]) - len(ok),
+            "within_1um": sum(1 for r, _ in ok if abs(r["final_error_m"]) <= NEAR_M),
+            "counted_runs": sum(1 for _, q in g["last"] if q > 0.0),
+            "within_count": sum(1 for r, q in counted if abs(r["final_error_m"]) <= q),
+            "settle_median_s": float(statistics.median(settle)) if settle else math.nan,
+            "settle_p95_s": (float(np.percentile(settle, 95, method="higher")) if settle
+                             else math.nan),
+            "pulses_far": len(far), "runaway_far": sum(1 for p in far if _runaway(p)),
+            "pulses_near": len(near), "runaway_near": sum(1 for p in near if _runaway(p)),
+            "largest_runaway_m": max((abs(float(p["d_m"])) for p in runaway), default=0.0),
+            "maneuvers": sum(1 for r in g["all"] if r["status"] == "ok"),
+            "farther": sum(1 for r in g["all"] if r["status"] == "ok"
+                           and r.get("ends_farther") is True),
+            "false_settled": sum(1 for r, _ in g["last"] if r.get("false_settled")),
+            "time_ended": sum(1 for r, _ in ok if r.get("outcome_reason") == "time_ended"),
+        })
+    return out
+
+
+def _share(n: int, of: int) -> str:
+    return f"{n} of {of} ({n / of:.1%})" if of else "–"
+
+
+def spec_markdown(battery: Battery, spec: list[dict]) -> list[str]:
+    """Lines of summary.md's spec table of one battery (from :func:`spec_rows`)."""
+    first = "| case " if battery.cases else ""
+    lines = ["### Spec", "",
+             "Last iteration: runs within 1 um and within one encoder count (of the runs "
+             "with a count), the settle time (median and p95 over the runs; inf: more "
+             "than that share did not end `settled`), false `settled` and `time_ended`. "
+             "Every iteration: runaway pulses (beyond max(1.5*abs(e) + one count, the "
+             "smallest pulse), `papwc.master.pulses`) of the pulses that moved, fired at "
+             "abs(e) >= 1 um and below, the largest move of a runaway pulse, and the "
+             "maneuvers that ended farther from the target than they started. Every pulse "
+             "is in `pulses.csv`.", "",
+             first + "| controller | runs | within 1 um | within one count | settle median "
+             "(s) | settle p95 (s) | runaway at abs(e) >= 1 um | runaway below 1 um | "
+             "largest runaway move (m) | farther | false settled | time_ended |",
+             ("|---" if battery.cases else "")
+             + "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in spec:
+        if r["battery"] != battery.name:
+            continue
+        lines.append(
+            (f"| {r['case']} " if battery.cases else "")
+            + f"| {r['controller']} | {r['runs']} | {_share(r['within_1um'], r['runs'])} | "
+            f"{_share(r['within_count'], r['counted_runs'])} | "
+            f"{_fmt(r['settle_median_s'], '.3f')} | {_fmt(r['settle_p95_s'], '.3f')} | "
+            f"{_share(r['runaway_far'], r['pulses_far'])} | "
+            f"{_share(r['runaway_near'], r['pulses_near'])} | "
+            f"{_fmt(r['largest_runaway_m'], '.3g')} | {r['farther']} of {r['maneuvers']} | "
+            f"{r['false_settled']} | {r['time_ended']} |")
+    return lines + [""]
+
+
 def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[dict],
-                     fmu_sha256: str) -> str:
-    """The text of summary.md."""
+                     fmu_sha256: str, spec_table: list[dict] | None = None) -> str:
+    """The text of summary.md (with ``spec_table``, from :func:`spec_rows`: each battery's
+    spec table after its summary table)."""
     lines = ["# Battery results", ""]
     failed_keys = {(r["battery"], r["run_id"]) for r in rows if r["status"] == "error"}
     n_err = len(failed_keys)
@@ -170,6 +304,8 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
                 lines.append((f"| {case} " if battery.cases else "") + _summary_cells(label, cr)
                              + _safety_cells(cr, ar))
         lines += ["", f"Distribution of |final error|: `final_error_{battery.name}.png`.", ""]
+        if spec_table is not None:
+            lines += spec_markdown(battery, spec_table)
         failed = [s for s in b_runs if (s.battery, s.run_id) in failed_keys]
         if failed:
             lines += [f"Runs with status error ({len(failed)}):", ""]
@@ -257,7 +393,8 @@ def plot_final_errors(battery: Battery, rows: list[dict], path: Path) -> None:
 
 def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], records: dict,
                   fmu_sha256: str) -> list[Path]:
-    """Write results.csv, runs.csv, summary.md and the plots from the records."""
+    """Write results.csv, runs.csv, pulses.csv, spec.csv, summary.md and the plots from the
+    records (each file atomically)."""
     from papwc.output import write_rows, write_text
 
     rows = result_rows(batteries, runs, records)
@@ -266,8 +403,14 @@ def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], reco
     columns = (["battery", "run_id", "run_hash"] + (["case"] if has_cases else [])
                + ["controller", "kind", "iteration", "last_iteration"] + varied + list(METRICS)
                + ["success", "false_settled", "status", "message"])
-    paths = [out / "results.csv", out / "runs.csv", out / "summary.md"]
+    paths = [out / "results.csv", out / "runs.csv", out / "summary.md", out / "pulses.csv",
+             out / "spec.csv"]
     write_rows(paths[0], rows, columns)
+    write_rows(paths[3], pulse_rows(runs, records, has_cases),
+               ["battery", "run_id", "run_hash"] + (["case"] if has_cases else [])
+               + ["controller", "kind", "iteration", *ROW_COLUMNS])
+    spec_table = spec_rows(batteries, runs, records, rows)
+    write_rows(paths[4], spec_table, SPEC_COLUMNS)
     run_rows = []
     for spec in runs:
         rec = records[(spec.battery, spec.run_id)]
@@ -280,7 +423,7 @@ def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], reco
         "status", "message"]
     run_columns += list(dict.fromkeys(k for r in run_rows for k in r if k not in run_columns))
     write_rows(paths[1], run_rows, run_columns)
-    write_text(paths[2], summary_markdown(batteries, runs, rows, fmu_sha256))
+    write_text(paths[2], summary_markdown(batteries, runs, rows, fmu_sha256, spec_table))
     for battery in batteries:
         png = out / f"final_error_{battery.name}.png"
         plot_final_errors(battery, rows, png)

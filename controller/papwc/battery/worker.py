@@ -87,7 +87,8 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         tolerance, error and the metrics of every iteration (those of
         :func:`papwc.master.summarize`, the largest ratio of a pulse's
         displacement to its bound, :func:`papwc.master.pulses.pulse_ratio`, and
-        whether the iteration ended farther from the target than it started).
+        whether the iteration ended farther from the target than it started),
+        and ``pulses``: every pulse of every iteration (:func:`pulse_rows`).
         Exceptions are caught and recorded, never raised.
     """
     from papwc.master import summarize
@@ -117,7 +118,8 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
                                    "error": trace.error})
             entry = {"label": result.label, "kind": settings.kind,
                      "tolerance": settings.tolerance, "error": result.error,
-                     "iterations": iterations}
+                     "iterations": iterations,
+                     "pulses": pulse_rows(result.traces, scenario.plant, scenario.maneuver.T)}
             warning = scenario.warnings_of(result.label)
             if warning:
                 entry["warning"] = warning
@@ -135,6 +137,16 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         record["message"] = f"{type(exc).__name__}: {exc}"
     record["elapsed_s"] = time.perf_counter() - start
     return record
+
+
+def pulse_rows(traces, plant: dict, T: float) -> list[dict]:
+    """Every pulse of every iteration as a row of ``papwc run``'s pulses.csv, its iteration
+    first (:meth:`papwc.master.pulses.PulseBound.rows`)."""
+    from papwc.master.pulses import PulseBound
+
+    bound = PulseBound(plant, T)
+    return [{"iteration": trace.iteration, **row} for trace in traces
+            for row in bound.rows(trace)]
 
 
 def ends_farther(trace) -> bool:

@@ -65,6 +65,8 @@ class PulseControllerBase(Controller):
     """
 
     kind = "base"
+    #: The sequencer of the kind (a subclass may change its coarse move or its decisions).
+    sequencer_class = PulseSequencer
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
         super().__init__(settings, T)
@@ -83,7 +85,7 @@ class PulseControllerBase(Controller):
         self.rest = RestDetector(settings.rest_band, settings.rest_samples,
                                  settings.rest_auto, self.mode_samples)
         self.trust = TrustRegion(self.trust0(settings), self.guarded, self.mode_samples > 0)
-        self.seq = PulseSequencer(self, self.rest, self.trust)
+        self.seq = self.sequencer_class(self, self.rest, self.trust)
 
     # -- the interface -----------------------------------------------------------------
     def reset(self) -> None:
@@ -154,6 +156,10 @@ class PulseControllerBase(Controller):
     def f_low(self) -> float:
         """Lowest pulse height it plans with now, N: one sample at it is its smallest pulse."""
         return min(self.f_p_floor, self.settings.f_p_max)
+
+    def budget_spent(self) -> bool:
+        """Whether this maneuver's pulse budget (``max_pulses``) is spent."""
+        return self.seq.pulses >= self.max_pulses
 
     def precision(self, e: float) -> float:
         """Relative error expected of the move for error e (m): how exactly e need be known."""

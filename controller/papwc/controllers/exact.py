@@ -40,6 +40,11 @@ less than one sample at the stiction force, Eq. (20). This controller
   only while that cannot end farther from it than the mass is; after one that
   moved less than the rest band (a creep: pre-sliding, a lag), one sample 10 %
   higher, while the model says it moves no farther than the error;
+* where that plan finds no pulse that helps at the start of a maneuver (or after a
+  pulse planned so), plans one sample for the lowest breakaway force still possible
+  (:meth:`ExactController.plan_pulse`): a pulse that did not move proves the breakaway
+  lies above its height until the table moves again, so a maneuver after a learned one
+  starts and a pulse that crept is evidence, not the end of it;
 * stops once ``|e|`` is below what a move can achieve (half the encoder
   resolution, or the model's relative error times the move), when even the
   cautious pulse cannot help a rejected model (``model_rejected``), and after
@@ -90,6 +95,12 @@ _NEW_WIDTH = 2.0 / 3.0
 #: Relative model error (misfit over the history, or of the last prediction) above which
 #: a pulse wider than any made is planned with ``_NEW_WIDTH`` of the trust.
 _EXACT_ENOUGH = 0.2
+#: Step of a one-sample pulse above the highest height that did not move (relative).
+_LB_STEP = 0.002
+#: One-sample pulses whose implied breakaway forces are kept.
+_IMPLIED = 8
+#: Smallest relative margin below the lowest breakaway seen, where a new one may lie.
+_LB_MARGIN = 0.03
 #: Largest pulse width searched, samples.
 _N_SEARCH_MAX = 1 << 20
 
@@ -139,12 +150,27 @@ class ExactController(PulseControllerBase):
         #: (the way back of a two-pulse move), and whether the last pulse had one sample.
         self.fine_error = 1.0
         self._after_single = False
+        #: Highest one-sample height that did not move the table since it last moved, N (0:
+        #: none): the breakaway force lies above it until the table moves again.
+        self.f_lb = 0.0
+        #: Breakaway forces the last one-sample pulses that moved imply, N (newest last): the
+        #: highest height that did not move just before, or where its move says.
+        self.implied: list[float] = []
+        #: The last one-sample pulse planned on that evidence: (n, height N, prediction m).
+        self._planned: tuple[int, float, float] = (0, 0.0, 0.0)
+        self._planned_last = False
         super().__init__(settings, T)
 
     def reset(self) -> None:
-        """Start a new maneuver from rest: the learned model is kept, misses forgotten."""
+        """Start a new maneuver from rest: the learned model is kept, misses forgotten.
+
+        The table has moved since the last pulse: its breakaway force is drawn anew, so the
+        heights that did not move prove nothing any more (``f_lb`` = 0).
+        """
         super().reset()
         self.misses = 0
+        self.f_lb = 0.0
+        self.revision += 1  # f_low may differ
 
     # -- planning ----------------------------------------------------------------------
     @property
@@ -164,7 +190,8 @@ class ExactController(PulseControllerBase):
 
     @property
     def f_low(self) -> float:
-        """Lowest height it plans with outside a probe of f_s, N: ``f_floor``."""
+        """Lowest height it plans with now, N: just above the lowest breakaway force still
+        possible (:meth:`f_b_low`) once there is evidence of it, else ``f_floor``."""
         return self.f_floor
 
     def correction(self, n: int, f: float) -> float:
@@ -226,8 +253,17 @@ class ExactController(PulseControllerBase):
         return pulse_displacement(f, n * self.T, m, f_c, c) * self.correction(n, f)
 
     def predict(self, n: int, f_p: float) -> float:
-        """Displacement (m, along f_p) the corrected model predicts for the pulse."""
-        return self.displacement(n, abs(f_p)) if f_p != 0.0 else 0.0
+        """Displacement (m, along f_p) the corrected model predicts for the pulse.
+
+        For the pulse just planned on the evidence of the breakaway force, the larger of
+        that and of its move if the table broke away at the lowest force still possible.
+        """
+        if f_p == 0.0:
+            return 0.0
+        n_plan, f_plan, pred = self._planned
+        if n == n_plan and abs(f_p) == f_plan:
+            return pred
+        return self.displacement(n, abs(f_p))
 
     def plan_displacement(self, d: float, f_floor: float | None = None) -> tuple[int, float]:
         """Fastest pulse for a displacement d > 0 (m): n samples and height (N, > 0).
@@ -272,6 +308,86 @@ class ExactController(PulseControllerBase):
         return nearest_increasing(lambda f: self.displacement(n, f), d, f_lo, f_hi)
 
     def plan_pulse(self, e: float) -> tuple[int, float]:
+        """Pulse for the error e (m): :meth:`_plan`, or, where that finds no pulse that
+        helps, one planned on the evidence of the breakaway force.
+
+        When the model's plan refuses (``no_move_helps``, ``model_rejected``) while
+        ``|e|`` exceeds half a count and there is evidence of where the table breaks
+        away (:meth:`f_b_low`), one sample toward the target is planned for the lowest
+        breakaway force still possible: the height that moves ``trust*|e|`` if the table
+        broke away there (:meth:`lowest_breakaway_move`), and above the highest height
+        that did not move since the table last moved (``f_lb``). A pulse that did not
+        move raises ``f_lb``; so a maneuver is not given up while such a pulse can help.
+        """
+        self._planned_last = self._planned[0] == 1
+        self._planned = (0, 0.0, 0.0)
+        n, f_p = self._plan(e)
+        if f_p != 0.0 or not self.guarded or not math.isfinite(e):
+            return n, f_p
+        if (self.seq.refusal not in (Reason.NO_MOVE_HELPS, Reason.MODEL_REJECTED)
+                or abs(e) <= max(0.5 * self.estimator.x_resolution, self.settings.tolerance)
+                or not (self.pulses == 0 or self._planned_last)):
+            return n, f_p
+        f_b = self.f_b_low()
+        if not f_b > 0.0:
+            return n, f_p
+        f_max = self.settings.f_p_max
+        f_min = min(f_b * (1.0 + _LB_STEP), f_max)
+        goal = self.trust() * abs(e)
+        f = nearest_increasing(lambda h: self.lowest_breakaway_move(h, f_b), goal, f_min,
+                               f_max)
+        self._planned = (1, f, self.lowest_breakaway_move(f, f_b))
+        return 1, math.copysign(f, e)
+
+    def f_b_low(self) -> float:
+        """The lowest breakaway force still possible now, N (0: no evidence yet).
+
+        ``f_lb`` (a one-sample pulse at that height did not move since the table last
+        moved); right after a move (the breakaway is drawn anew), the lowest of the
+        breakaway forces the last one-sample pulses implied (:attr:`implied`), lowered
+        by their relative spread (at least ``_LB_MARGIN``); without those, the same from
+        the fit's bracket and f_c.
+        """
+        if self.f_lb > 0.0:
+            return self.f_lb
+        lo = min(self.implied, default=0.0)
+        hi = max(self.implied, default=0.0)
+        if not lo > 0.0:
+            # no breakaway seen between two heights: below the fit's bracket and f_c
+            est = self.estimator
+            lo = hi = max(est.f_s_lo, est.f_c_hat) if est.pulses else 0.0
+            if not lo > 0.0:
+                return 0.0
+        # the breakaway is drawn anew: below the lowest seen by the spread seen
+        spread = max((hi - lo) / hi, _LB_MARGIN)
+        return lo * (1.0 - spread)
+
+    def lowest_breakaway_move(self, f: float, f_b: float) -> float:
+        """Displacement of one sample at height f (N) if the table broke away at f_b (N), m.
+
+        Eq. (2): the friction at f_b throughout (at the low speeds of a pulse near
+        breakaway the friction stays near the breakaway force), no viscous damping, and the
+        smaller of the learned mass and ``m_est`` (a fit fooled by a plant unlike Eq. (3)
+        does not make the move look shorter than it may be).
+        """
+        m = min(self.estimator.m_hat, self.settings.m_est)
+        return pulse_displacement(f, self.T, m, f_b, 0.0) if f > f_b else 0.0
+
+    def implied_breakaway(self, f: float, d: float) -> float:
+        """Breakaway force (N) at which one sample at f (N) moves d > 0 (m) by
+        :meth:`lowest_breakaway_move` (0 if even a breakaway at 0 does not explain d)."""
+        lo, hi = 1e-9 * f, f
+        if self.lowest_breakaway_move(f, lo) <= d:
+            return 0.0
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            if self.lowest_breakaway_move(f, mid) > d:
+                lo = mid
+            else:
+                hi = mid
+        return lo
+
+    def _plan(self, e: float) -> tuple[int, float]:
         """Pulse for the error e (m): toward the target, or away first for a two-pulse move.
 
         When ``trust*|e|`` is below the smallest pulse, a single sample below
@@ -386,12 +502,36 @@ class ExactController(PulseControllerBase):
         return n, min(f_p, max(f_lo, f_seen * (1.0 + _TRIED_STEP)))
 
     def learn(self, n: int, f_p: float, d: float) -> None:
-        """Take the measured displacement d (m) of the pulse (n samples, f_p N) into the model."""
+        """Take the measured displacement d (m) of the pulse (n samples, f_p N) into the model.
+
+        A pulse that moved the table measurably (beyond 3 standard deviations of a measured
+        displacement and half the resolution) ends the proof of ``f_lb`` (the breakaway
+        is drawn anew at the next stop); a one-sample pulse that moved adds the breakaway
+        force it implies to :attr:`implied` (``f_lb`` if above 0, else from its move by
+        :meth:`implied_breakaway`). A one-sample pulse that did not move, or one planned
+        on the evidence that moved less than ``_FAR_LESS`` of its prediction (it crept:
+        pre-sliding), raises ``f_lb`` to its height.
+        """
         pred = self.seq.pred
         d_along = d if f_p > 0.0 else -d
         noise = Z_DECIDE * self._meas_sigma()
         est = self.estimator
         est.meas_sigma = self._meas_sigma()
+        crept = (n == 1 and self._planned[0] == 1 and 0.0 < d_along < _FAR_LESS * pred)
+        if math.isfinite(d_along) and math.isfinite(f_p):
+            if crept:
+                # far less than even a breakaway at f_b_low would move it: pre-sliding or a
+                # creep below breakaway, evidence that the breakaway lies above (a probe)
+                self.f_lb = max(self.f_lb, abs(f_p))
+            elif abs(d_along) > max(noise, 0.5 * est.x_resolution):
+                if n == 1 and d_along > 0.0:
+                    # broke away between f_lb and f_p, or where its move says
+                    f_b = self.f_lb or self.implied_breakaway(abs(f_p), d_along)
+                    if f_b > 0.0:
+                        self.implied = (self.implied + [f_b])[-_IMPLIED:]
+                self.f_lb = 0.0
+            elif n == 1:
+                self.f_lb = max(self.f_lb, abs(f_p))
         if pred > 0.0 and math.isfinite(d_along) and d_along > max(noise, self.rest.band):
             # (a pulse that did not move probed f_s: it says nothing of the model)
             r = max(abs(d_along - pred) - noise, 0.0) / pred
@@ -448,7 +588,8 @@ class ExactController(PulseControllerBase):
         est = self.estimator
         out = {**super().law_state(), "errors": list(self.errors), "misses": self.misses,
                "meas_sigma": est.meas_sigma, "fine_error": self.fine_error,
-               "after_single": int(self._after_single)}
+               "after_single": int(self._after_single), "f_lb": self.f_lb,
+               "implied": list(self.implied), "planned": [float(v) for v in self._planned]}
         out.update({f"estimator.{k}": v for k, v in est.state().items()})
         return out
 
@@ -459,6 +600,13 @@ class ExactController(PulseControllerBase):
             raise ValueError(f"law.errors holds {len(errors)} numbers, not 2")
         self.errors = errors
         self.misses = int(values["misses"])
+        self.f_lb = float(values["f_lb"])
+        implied = [float(v) for v in values["implied"]]
+        if len(implied) > _IMPLIED:
+            raise ValueError(f"law.implied holds {len(implied)} numbers, at most {_IMPLIED}")
+        self.implied = implied
+        n_plan, f_plan, pred = (float(v) for v in values["planned"])
+        self._planned = (int(n_plan), f_plan, pred)
         self.estimator.meas_sigma = float(values["meas_sigma"])
         self.fine_error, self._after_single = (float(values["fine_error"]),
                                                bool(values["after_single"]))

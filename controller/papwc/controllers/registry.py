@@ -5,6 +5,7 @@ from __future__ import annotations
 from .exact import ExactController
 from .interface import Controller
 from .papwc import PapwcController
+from .pid import PidController
 from .pwc import PwcController
 from .settings import ControllerSettings
 
@@ -13,6 +14,7 @@ CONTROLLER_KINDS: dict[str, type[Controller]] = {
     PwcController.kind: PwcController,
     PapwcController.kind: PapwcController,
     ExactController.kind: ExactController,
+    PidController.kind: PidController,
 }
 
 

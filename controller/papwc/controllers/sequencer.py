@@ -50,16 +50,14 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 from .interface import Mode, Outcome, Reason
 from .rest import NOISE_DWELL, NOISE_WINDOW, RestDetector
+from .settings import ControllerSettings
 from .trust import TRUST_MIN, TrustRegion
 
-if TYPE_CHECKING:
-    from .base import PulseControllerBase
-
-__all__ = ["PRECISION_MIN", "X_LIMIT", "Z_ACT", "Z_DECIDE", "PulseSequencer"]
+__all__ = ["PRECISION_MIN", "X_LIMIT", "Z_ACT", "Z_DECIDE", "Law", "PulseSequencer"]
 
 #: Largest |position| read as one, m: beyond it (or NaN) a reading is invalid and the
 #: controller stops (its sums of squares stay finite).
@@ -86,13 +84,32 @@ _M_WAIT = Mode.WAIT
 _NAN = math.nan
 
 
+class Law(Protocol):
+    """What the sequencer asks of its control law (:class:`~.base.PulseControllerBase`)."""
+
+    settings: ControllerSettings
+    T: float
+    revision: int
+
+    def plan_pulse(self, e: float) -> tuple[int, float]: ...
+
+    def predict(self, n: int, f_p: float) -> float: ...
+
+    def learn(self, n: int, f_p: float, d: float) -> None: ...
+
+    def precision(self, e: float) -> float: ...
+
+    def budget_spent(self) -> bool: ...
+
+
 class PulseSequencer:
     """Sequencing of one maneuver of a pulse controller (see the module).
 
     Parameters
     ----------
-    law : PulseControllerBase
-        The control law: ``plan_pulse``, ``predict``, ``learn``, ``precision``.
+    law : Law
+        The control law: ``plan_pulse``, ``predict``, ``learn``, ``precision``,
+        ``budget_spent``.
     rest : RestDetector
         Rest detection of the controller.
     trust : TrustRegion
@@ -126,7 +143,7 @@ class PulseSequencer:
                        "outcome", "outcome_reason", "refusal"))
     _BOOLS = frozenset(("first", "stopped", "released"))
 
-    def __init__(self, law: PulseControllerBase, rest: RestDetector,
+    def __init__(self, law: Law, rest: RestDetector,
                  trust: TrustRegion) -> None:
         self.law = law
         self.rest = rest
@@ -309,7 +326,7 @@ class PulseSequencer:
             self.released = False
             self.outcome = Outcome.ACTIVE
             return self.coarse(x_ref - self.x_prev)
-        if self.guarded and self.pulses >= self.max_pulses:
+        if self.guarded and law.budget_spent():
             return self.stop(Reason.PULSE_BUDGET)
         self.refusal = Reason.NO_MOVE_HELPS
         n, f_p = law.plan_pulse(e)

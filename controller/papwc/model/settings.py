@@ -43,8 +43,10 @@ DWELL_MAX = 1_000_000
 #: Settings of a ``[[controller]]`` table, in the order of the FMU's value references.
 CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("kind", "Controller kind (pwc: Section 2, papwc: Section 3, exact: Eq. (3) "
-             "learned)", "", "papwc", type="String"),
-    Variable("f_p_max", "Largest pulse amplitude (PWC always pulses at f_p_max)", "N", 300.0,
+             "learned, pid: PID with friction feed-forward, no pulses)", "", "papwc",
+             type="String"),
+    Variable("f_p_max", "Largest pulse amplitude (PWC always pulses at f_p_max), and the force "
+             "limit of the coarse feedback and of the PID", "N", 300.0,
              min=0.0, min_open=True, max=1e9, nominal=100.0),
     Variable("t_p_max", "Largest pulse width; inf for no bound", "s", float("inf"), min=0.0,
              min_open=True, max=1e6, inf_ok=True, note="(inf for no bound)"),
@@ -92,9 +94,11 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("e_band", "Error band inside which the mass at rest is handed over from the "
              "coarse feedback to pulse mode, > tolerance", "m", 0.02, min=0.0, min_open=True,
              max=1e3),
-    Variable("k_p", "Proportional gain of the coarse feedback; default m_est*(10 rad/s)**2",
+    Variable("k_p", "Proportional gain of the coarse feedback (pid: of the PID); default "
+             "m_est*(10 rad/s)**2 (pid: m_est*(0.1/T)**2)",
              "N/m", None, min=0.0, min_open=True, max=1e15, optional=True),
-    Variable("k_d", "Derivative gain of the coarse feedback; default 2*0.7*(10 rad/s)*m_est",
+    Variable("k_d", "Derivative gain of the coarse feedback (pid: of the PID); default "
+             "2*0.7*(10 rad/s)*m_est (pid: 2*0.7*(0.1/T)*m_est)",
              "N.s/m", None, min=0.0, max=1e15, optional=True),
     Variable("rest_samples", "Sample intervals over which the measured position must stay "
              "within the rest band to count as at rest (the dwell; with rest_auto, at least "
@@ -130,6 +134,20 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
              "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
              "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True, kinds=("exact",)),
+    Variable("k_i", "Integral gain of the PID; default 0.25*m_est*(0.1/T)**3 (k_p and k_d "
+             "default to m_est*(0.1/T)**2 and 2*0.7*(0.1/T)*m_est for it: the coarse loop's "
+             "gains, which are these at T = 0.01 s)", "N/(m.s)", None, min=0.0, max=1e18,
+             optional=True, kinds=("pid",)),
+    Variable("a_max", "Largest acceleration of the PID's reference trajectory; default "
+             "(f_p_max - f_c_est)/(2*m_est), half what the force limit leaves over the "
+             "friction", "m/s2", None, min=0.0, min_open=True, max=1e6, optional=True,
+             kinds=("pid",)),
+    Variable("v_max", "Largest speed of the PID's reference trajectory", "m/s", 0.05,
+             min=0.0, min_open=True, max=1e3, kinds=("pid",)),
+    Variable("hunt_max", "Reversals after which the PID, at rest nearer the target than the "
+             "maneuver started, stops (outcome stopped, reason hunting): a reversal is a rest "
+             "on the other side of the target than the last one", "", 4, type="Integer",
+             min=1, max=1_000_000, kinds=("pid",)),
 )
 
 
@@ -194,7 +212,7 @@ REFERENCE_OFFSET = Variable(
 
 #: Controller kinds by number: ``KIND_CODES[n - 1]`` is the kind that ``kind_code = n``
 #: selects (the registry of :mod:`papwc.controllers` has exactly these kinds).
-KIND_CODES: tuple[str, ...] = ("pwc", "papwc", "exact")
+KIND_CODES: tuple[str, ...] = ("pwc", "papwc", "exact", "pid")
 
 #: The controller kind as an Integer parameter of PulseController.fmu, for hosts and SSP
 #: readers that cannot set the String ``kind`` (fmpy, OMSimulator). 0 leaves the choice
@@ -250,6 +268,7 @@ OUTCOME_REASONS: tuple[str, ...] = (
     "time_ended",  # 5: the maneuver ended while the controller was still active
     "invalid_measurement",  # 6: a reading or reference not finite, or beyond 1e6 m
     "cannot_move",  # 7: the largest pulse did not move the mass
+    "hunting",  # 8: a PID at rest, nearer than it started, after hunt_max reversals
 )
 
 #: Inputs of PulseController.fmu, read at the start of each step.
