@@ -85,9 +85,11 @@ def faulty_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_a_run_past_its_time_limit_is_recorded_and_computed_again_on_resume(
         tmp_path: Path, friction_plant_fmu: Path) -> None:
+    # (at T = 2 us a run is 1e6 steps: seconds even with the native plant, which takes
+    # T = 1e-5 s in under one)
     timed = battery_file(tmp_path, """
         [sweep]
-        "maneuver.T" = [0.01, 1e-5]
+        "maneuver.T" = [0.01, 2e-6]
         [battery]
         run_timeout = 1
         """)
