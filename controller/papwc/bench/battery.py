@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import contextlib
 import importlib.util
+import os
 import statistics
 import tempfile
+import threading
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -141,3 +143,97 @@ def battery_throughput(context: BenchContext) -> list[Row]:
     rows.append(Row(f"marginal cost per run ({first} -> {last} runs)", per_run * 1e3, "ms"))
     rows.append(Row("fixed cost (intercept)", growth[first] - per_run * first, "s"))
     return rows
+
+
+#: Goal: a worker's RSS grows by less than this over the memory section's battery, kB.
+WORKER_GROWTH_GOAL_KB = 1024
+
+
+def _descendants(pid: int) -> list[int]:
+    """Process ids of the children of ``pid`` and of theirs (Linux /proc)."""
+    parents: dict[int, int] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            with contextlib.suppress(OSError, IndexError, ValueError):
+                stat = Path(f"/proc/{entry}/stat").read_text()
+                parents[int(entry)] = int(stat.rsplit(") ", 1)[1].split()[1])
+    found, frontier = [], [pid]
+    while frontier:
+        frontier = [p for p, parent in parents.items() if parent in frontier]
+        found += frontier
+    return found
+
+
+def _rss_kb(pid: int) -> int | None:
+    with contextlib.suppress(OSError):
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1])
+    return None
+
+
+@register_section("Battery workers' memory over a 2,000-run battery")
+def battery_worker_memory(context: BenchContext) -> list[Row]:
+    """RSS of each worker process while 2 local workers run a battery of 2,000 runs.
+
+    The battery is scenarios/robustness.toml with 2,000 draws (100 with ``quick``), on the
+    FMU folder's FrictionPlant.fmu; the workers' VmRSS is read from /proc every 0.25 s. The
+    growth of a worker is its RSS at the end of the battery less its RSS once a tenth of the
+    battery's time has passed (its imports and first run done).
+
+    Parameters
+    ----------
+    context : BenchContext
+        Gives the FMU folder and ``quick``.
+    """
+    if not Path("/proc/self/status").is_file():
+        context.notes.append("workers' memory not measured: needs Linux's /proc")
+        return []
+    fmu = context.fmu("FrictionPlant.fmu")
+    n_runs = 100 if context.quick else 2000
+    samples: dict[int, list[tuple[float, int]]] = {}
+    done = threading.Event()
+
+    def watch() -> None:
+        start = time.perf_counter()
+        while not done.wait(0.25):
+            for pid in _descendants(os.getpid()):
+                rss = _rss_kb(pid)
+                if rss is not None:
+                    samples.setdefault(pid, []).append((time.perf_counter() - start, rss))
+
+    watcher = threading.Thread(target=watch, daemon=True)
+    watcher.start()
+    try:
+        with tempfile.TemporaryDirectory(prefix="papwcbench") as tmp:
+            outcome = run_battery([bench_battery(n_runs)], Path(tmp) / "out", fmu, workers=2,
+                                  progress=False)
+    finally:
+        done.set()
+        watcher.join()
+    if outcome.failed:
+        raise BatteryError(f"bench battery: {outcome.failed[0]}")
+    # The workers are the processes that ran the whole battery and hold the most memory (the
+    # forkserver and the resource tracker are the others).
+    end = max((s[-1][0] for s in samples.values()), default=0.0)
+    workers = sorted((s for s in samples.values() if s[0][0] <= 0.1 * end and len(s) >= 10),
+                     key=lambda s: s[-1][1], reverse=True)[:2]
+    if not workers:
+        context.notes.append("workers' memory not measured: the battery ended too soon")
+        return []
+    growth = []
+    for s in workers:
+        at_tenth = next(rss for t, rss in s if t >= 0.1 * end)
+        growth.append(s[-1][1] - at_tenth)
+    worst = max(growth)
+    verdict = "met" if worst < WORKER_GROWTH_GOAL_KB else "MISSED"
+    context.notes.append(
+        f"{n_runs} runs of scenarios/robustness.toml on 2 local workers; RSS of each worker from "
+        "a tenth of the battery's time to its end (the pythonfmu plant grew 24.5 kB a run)")
+    return [
+        Row("worker RSS at the end (largest)", max(s[-1][1] for s in workers) / 1024, "MB"),
+        Row(f"worker RSS growth, largest (goal < {WORKER_GROWTH_GOAL_KB} kB: {verdict})",
+            float(worst), "kB"),
+        Row("worker RSS growth per run (largest worker, its share of the runs)",
+            worst / (0.9 * n_runs / len(workers)), "kB"),
+    ]
