@@ -229,7 +229,7 @@ def battery_worker_memory(context: BenchContext) -> list[Row]:
     verdict = "met" if worst < WORKER_GROWTH_GOAL_KB else "MISSED"
     context.notes.append(
         f"{n_runs} runs of scenarios/robustness.toml on 2 local workers; RSS of each worker from "
-        "a tenth of the battery's time to its end (the pythonfmu plant grew 24.5 kB a run)")
+        "a tenth of the battery's time to its end")
     return [
         Row("worker RSS at the end (largest)", max(s[-1][1] for s in workers) / 1024, "MB"),
         Row(f"worker RSS growth, largest (goal < {WORKER_GROWTH_GOAL_KB} kB: {verdict})",
