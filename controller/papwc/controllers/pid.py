@@ -120,15 +120,14 @@ class PidController(Controller):
     kind = "pid"
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
-        #: The settings as given (the base decides at rest with e_band = tolerance: the PID
-        #: hands nothing over, any error beyond the tolerance is the PID's again).
-        self.given = settings
+        # The base decides at rest with e_band = tolerance: the PID hands nothing over, any
+        # error beyond the tolerance is the PID's again (e_band itself is not used).
         super().__init__(dataclasses.replace(settings, e_band=settings.tolerance), T)
         self.k_p, self.k_d, self.k_i = pid_gains(settings, T)
         s = settings
         self.a_max = (s.a_max if s.a_max is not None
                       else max(s.f_p_max - s.f_c_est, 0.0) / (2.0 * s.m_est))
-        if not self.a_max > 0.0:
+        if not self.a_max > 0.0:  # settings not validated (f_c_est >= f_p_max)
             self.a_max = s.f_p_max / (2.0 * s.m_est)
         self.v_max = float(s.v_max)
 
