@@ -136,8 +136,8 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True, kinds=("exact",)),
     Variable("k_i", "Integral gain of the PID; default 0.25*m_est*w**3 with w = 0.1/T rad/s, "
              "at most 0.05*2*pi*f_mode (k_p and k_d default to m_est*w**2 and 2*0.7*w*m_est "
-             "for it: the coarse loop's gains, which are these at T = 0.01 s)", "N/(m.s)", None, min=0.0, max=1e18,
-             optional=True, kinds=("pid",)),
+             "for it: the coarse loop's gains, which are these at T = 0.01 s)", "N/(m.s)", None,
+             min=0.0, max=1e18, optional=True, kinds=("pid",)),
     Variable("a_max", "Largest acceleration of the PID's reference trajectory; default "
              "(f_p_max - f_c_est)/(2*m_est), half what the force limit leaves over the "
              "friction", "m/s2", None, min=0.0, min_open=True, max=1e6, optional=True,
