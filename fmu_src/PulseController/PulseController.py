@@ -40,7 +40,7 @@ STEP_RTOL = 1e-9
 
 
 class PulseController(CheckedSlave):
-    """Adaptive pulse controller (PWC, PAPWC or exact) sampled at the communication steps.
+    """Adaptive pulse controller (PWC, PAPWC, exact; or the PID baseline) sampled at each step.
 
     Parameters (the settings of a scenario's ``[[controller]]`` table and the
     sample period ``T``) are read when initialization ends; ``x_meas`` (m) and
@@ -57,7 +57,8 @@ class PulseController(CheckedSlave):
     version = "0.1.0"
     description = (
         "Adaptive pulse controller for positioning a mass with stick-slip friction "
-        "(PWC, PAPWC or exact): at each communication step of size T it reads the measured "
+        "(PWC, PAPWC or exact; or the PID baseline, kind pid): at each communication step of "
+        "size T it reads the measured "
         "position and the reference and sets the force to hold over the next sample"
     )
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=1.0, step_size=0.01)

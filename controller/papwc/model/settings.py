@@ -95,10 +95,10 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "coarse feedback to pulse mode, > tolerance", "m", 0.02, min=0.0, min_open=True,
              max=1e3),
     Variable("k_p", "Proportional gain of the coarse feedback (pid: of the PID); default "
-             "m_est*(10 rad/s)**2 (pid: m_est*(0.1/T)**2)",
+             "m_est*(10 rad/s)**2 (pid: m_est*w**2, w = 0.1/T rad/s, at most 0.05*2*pi*f_mode)",
              "N/m", None, min=0.0, min_open=True, max=1e15, optional=True),
     Variable("k_d", "Derivative gain of the coarse feedback (pid: of the PID); default "
-             "2*0.7*(10 rad/s)*m_est (pid: 2*0.7*(0.1/T)*m_est)",
+             "2*0.7*(10 rad/s)*m_est (pid: 2*0.7*w*m_est)",
              "N.s/m", None, min=0.0, max=1e15, optional=True),
     Variable("rest_samples", "Sample intervals over which the measured position must stay "
              "within the rest band to count as at rest (the dwell; with rest_auto, at least "
@@ -134,10 +134,10 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
              "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
              "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True, kinds=("exact",)),
-    Variable("k_i", "Integral gain of the PID; default 0.25*m_est*(0.1/T)**3 (k_p and k_d "
-             "default to m_est*(0.1/T)**2 and 2*0.7*(0.1/T)*m_est for it: the coarse loop's "
-             "gains, which are these at T = 0.01 s)", "N/(m.s)", None, min=0.0, max=1e18,
-             optional=True, kinds=("pid",)),
+    Variable("k_i", "Integral gain of the PID; default 0.25*m_est*w**3 with w = 0.1/T rad/s, "
+             "at most 0.05*2*pi*f_mode (k_p and k_d default to m_est*w**2 and 2*0.7*w*m_est "
+             "for it: the coarse loop's gains, which are these at T = 0.01 s)", "N/(m.s)", None,
+             min=0.0, max=1e18, optional=True, kinds=("pid",)),
     Variable("a_max", "Largest acceleration of the PID's reference trajectory; default "
              "(f_p_max - f_c_est)/(2*m_est), half what the force limit leaves over the "
              "friction", "m/s2", None, min=0.0, min_open=True, max=1e6, optional=True,
