@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from papwc.bench import BenchContext, Row, gc_paused, median_interleaved, register_section
-from papwc.bench.plant import plant_forces
+from papwc.bench.plant import plant_forces, slave_methods_loop
 
 #: The pythonfmu FrictionPlant, relative to the bench's FMU folder.
 PYTHONFMU_PLANT = "pythonfmu/FrictionPlant.fmu"
@@ -82,23 +82,7 @@ def step_loop(fmu_path: Path, unzip_root: Path, params: dict[str, float], arrays
         clock["k"] = k0 + len(forces)
         return elapsed * 1e-9 / len(forces)
 
-    def loop(forces: list[float]) -> float:
-        set_real, do_step, get_real = slave.setReal, slave.doStep, slave.getReal
-        k0 = clock["k"]
-        with gc_paused():
-            start = time.perf_counter_ns()
-            for i, u in enumerate(forces):
-                set_real(vr_in, [u])
-                do_step((k0 + i) * h, h)
-                get_real(vr_out)
-            elapsed = time.perf_counter_ns() - start
-        clock["k"] = k0 + len(forces)
-        return elapsed * 1e-9 / len(forces)
-
-    def close() -> None:
-        slave.terminate()
-        slave.freeInstance()
-
+    loop, close = slave_methods_loop(slave, vr_in, vr_out, clock, h)
     return (loop_arrays if arrays else loop), close
 
 

@@ -7,6 +7,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 from papwc.bench import BenchContext, Row, gc_paused, median_interleaved, register_section
 
@@ -40,9 +41,16 @@ def fmpy_loop(fmu_path: Path, unzip_root: Path, input_name: str, output_name: st
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
     slave.exitInitializationMode()
-    vr_in, vr_out = [vr[input_name]], [vr[output_name]]
-    clock = {"t": 0.0, "k": 0}
-    h = 0.01
+    return slave_methods_loop(slave, [vr[input_name]], [vr[output_name]], {"k": 0}, 0.01)
+
+
+def slave_methods_loop(slave: Any, vr_in: list[int], vr_out: list[int], clock: dict[str, int],
+                       h: float) -> tuple[Callable[[list[float]], float], Callable[[], None]]:
+    """(loop(forces) -> s per step, close()) of an initialized fmpy ``FMU2Slave``.
+
+    Each step is ``setReal(vr_in, [u])``, ``doStep(t, h)``, ``getReal(vr_out)`` through the
+    slave's methods, as a script calls them; ``clock["k"]`` counts the steps taken so far.
+    """
 
     def loop(forces: list[float]) -> float:
         set_real, do_step, get_real = slave.setReal, slave.doStep, slave.getReal
