@@ -21,15 +21,17 @@ problem.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
+import shutil
 import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from papwc.errors import BuildError
+from papwc.errors import BuildError, OutputError
 from papwc.model.units import UNIT_DEFINITIONS
 from papwc.model.variables import FMU_DEFAULT_SENTINEL, Variable
 
@@ -94,6 +96,31 @@ def read_model_description(fmu_path: Path) -> ET.Element:
         return ET.fromstring(data)
     except ET.ParseError as exc:
         raise BuildError(f"{fmu_path}: {MODEL_DESCRIPTION} is not well-formed XML: {exc}") from exc
+
+
+def install_fmu(built: Path, out_dir: str | os.PathLike) -> Path:
+    """Copy the FMU ``built`` into ``out_dir`` (created if missing); return its path there.
+
+    It is copied to ``<name>.tmp`` and renamed, so ``out_dir`` never holds a partial FMU.
+
+    Raises
+    ------
+    OutputError
+        If the copy cannot be written (no partial copy is left).
+    """
+    out_dir = Path(out_dir)
+    target = out_dir / built.name
+    tmp = target.with_name(target.name + ".tmp")
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(built, tmp)
+        tmp.chmod(0o644)
+        tmp.replace(target)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)  # no partial copy left on a full disk
+        raise OutputError(f"cannot write {built.name} into {out_dir}: {exc}") from exc
+    return target
 
 
 def rewrite_fmu(fmu_path: Path, edit: Callable[[ET.Element], None] | None = None) -> None:

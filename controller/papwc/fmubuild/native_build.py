@@ -32,7 +32,6 @@ Every failure raises :class:`papwc.errors.BuildError` naming the FMU and the pro
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import html
 import os
@@ -47,10 +46,11 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from papwc.errors import BuildError, OutputError
+from papwc.errors import BuildError
 from papwc.fmubuild.model_description import (
     MODEL_DESCRIPTION,
     complete_model_description,
+    install_fmu,
     rewrite_fmu,
     xml_number,
 )
@@ -600,18 +600,6 @@ def build_native(source: NativeSource, out_dir: Path) -> Path:
         problems = validate_fmu(str(built))
         if problems:
             raise BuildError(f"{built.name} is not valid: " + "; ".join(problems))
-        out_dir = Path(out_dir)
-        target = out_dir / built.name
-        tmp = target.with_name(target.name + ".tmp")
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(built, tmp)
-            tmp.chmod(0o644)
-            tmp.replace(target)
-        except OSError as exc:
-            with contextlib.suppress(OSError):
-                tmp.unlink(missing_ok=True)
-            raise OutputError(f"cannot write {built.name} into {out_dir}: {exc}") from exc
-        return target
+        return install_fmu(built, out_dir)
     finally:
         shutil.rmtree(work, ignore_errors=True)

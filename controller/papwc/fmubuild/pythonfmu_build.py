@@ -19,7 +19,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import hashlib
 import re
 import shutil
@@ -29,8 +28,12 @@ import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from papwc.errors import BuildError, OutputError
-from papwc.fmubuild.model_description import complete_model_description, rewrite_fmu
+from papwc.errors import BuildError
+from papwc.fmubuild.model_description import (
+    complete_model_description,
+    install_fmu,
+    rewrite_fmu,
+)
 from papwc.model.variables import Variable
 
 __all__ = ["PYTHON_MIN", "STATE_OPTIONS", "FmuSource", "build_pythonfmu", "guid"]
@@ -262,18 +265,7 @@ def build_pythonfmu(source: FmuSource, out_dir: Path) -> Path:
             raise BuildError(
                 f"{built.name} built from {script} is not valid: " + "; ".join(problems)
             )
-        target = out_dir / built.name
-        tmp = target.with_name(target.name + ".tmp")
-        try:
-            out_dir.mkdir(parents=True, exist_ok=True)
-            shutil.copyfile(built, tmp)
-            tmp.chmod(0o644)
-            tmp.replace(target)
-        except OSError as exc:
-            with contextlib.suppress(OSError):
-                tmp.unlink(missing_ok=True)  # no partial copy left on a full disk
-            raise OutputError(f"cannot write {built.name} into {out_dir}: {exc}") from exc
-        return target
+        return install_fmu(built, out_dir)
     finally:
         # pythonfmu imports the model from the build folder; forget it so that an
         # FMU loaded later in this process imports its own bundled copy.
