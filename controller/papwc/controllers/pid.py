@@ -175,9 +175,8 @@ class PidController(PulseControllerBase):
     sequencer_class = PidSequencer
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
-        #: The settings as given (the sequencer decides at rest with e_band = tolerance:
-        #: the PID hands nothing over, any error beyond the tolerance is the PID's again).
-        self.given = settings
+        # The sequencer decides at rest with e_band = tolerance: the PID hands nothing over,
+        # any error beyond the tolerance is the PID's again (e_band itself is not used).
         self._reset_law()
         super().__init__(dataclasses.replace(settings, e_band=settings.tolerance), T)
         self.k_p, self.k_d, self.k_i = pid_gains(settings, T)

@@ -134,12 +134,7 @@ class RestDetector:
         self.look = 0
         self.ring = [0.0] * NOISE_WINDOW
         self.ring_n = 0
-        self.dir = 0.0
-        self.turns = 0
-        self.x_turn = 0.0
-        self.legs = 0
-        self.since_force = 0
-        self.since_turn = 0
+        self.forget_direction()
 
     # -- the test ----------------------------------------------------------------------
     def update_test(self) -> None:
