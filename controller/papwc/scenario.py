@@ -7,13 +7,13 @@ The schema (public; extend it, don't rename it)::
                      # m (kg), f_c (N), f_s (N), c (N.s/m), x_resolution (m)
     [maneuver]       # x_ref (m), T (s), duration (s per iteration), iterations,
                      # timing ("immediate" | "delayed"), noise_std (m), noise_seed
-    [[controller]]   # one table per controller; settings of papwc.model.settings
+    [[controller]]   # one table per controller; settings of papwc.model.controller_settings
     kind = "papwc"   # "pwc", "papwc", "exact"
     label = "..."    # optional name in results (default: kind and t_p_max)
 
 Every field may be left out and takes the default of its table in the model
 layer (:mod:`papwc.model.plant`, :mod:`papwc.model.maneuver`,
-:mod:`papwc.model.settings`; :func:`field_table` lists them); ``kind`` is
+:mod:`papwc.model.controller_settings`; :func:`field_table` lists them); ``kind`` is
 required. ``name`` and ``label`` name files, so they are letters, digits and
 ``_ . + -`` (:data:`papwc.limits.NAME_PATTERN`); the default name is the file's
 stem made so. Rules between tables: ``duration`` is a whole number of samples
@@ -38,7 +38,8 @@ from papwc.controllers import CONTROLLER_KINDS
 from papwc.controllers.settings import ControllerSettings, settings_for_kind
 from papwc.errors import ScenarioError
 from papwc.limits import MAX_INPUT_BYTES, check_name, input_path_problem, safe_name
-from papwc.master.run import Maneuver
+from papwc.master.closed_loop import Maneuver
+from papwc.model.controller_settings import CONTROLLER_SETTINGS, settings_problems
 from papwc.model.maneuver import MANEUVER_DEFAULTS, MANEUVER_VARIABLES, maneuver_problems
 from papwc.model.plant import (
     PLANT_DEFAULTS,
@@ -46,7 +47,6 @@ from papwc.model.plant import (
     SCENARIO_PLANT_FIELDS,
     plant_problems,
 )
-from papwc.model.settings import CONTROLLER_SETTINGS, settings_problems
 
 __all__ = [
     "MANEUVER_FIELDS",

@@ -42,7 +42,6 @@ class FrictionPlant(CheckedSlave):
 
     author = "papwc"
     license = "BSD-2-Clause"
-    version = "0.1.0"
     description = (
         "Mass with Coulomb, stiction and viscous friction (m*dv/dt = u - f_c*sgn(v) - c*v, "
         "stuck while v = 0 and |u| <= f_s), advanced exactly with the force held constant "

@@ -24,7 +24,6 @@ class PapwcTrivial(Fmi2Slave):
 
     author = "papwc"
     license = "BSD-2-Clause"
-    version = "0.1.0"
     description = "One Real input copied to one Real output at every step (benchmark floor)"
     default_experiment = DefaultExperiment(start_time=0.0, stop_time=1.0, step_size=0.01)
 

@@ -54,7 +54,6 @@ class PulseController(CheckedSlave):
 
     author = "papwc"
     license = "BSD-2-Clause"
-    version = "0.1.0"
     description = (
         "Adaptive pulse controller for positioning a mass with stick-slip friction "
         "(PWC, PAPWC or exact; or the PID baseline, kind pid): at each communication step of "

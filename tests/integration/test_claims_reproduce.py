@@ -124,7 +124,7 @@ def test_model_description_declares_the_reading_settings(pulse_controller_fmu):
 def test_ssp_binds_the_boolean_setting_and_libcosim_applies_it(
         friction_plant_fmu, pulse_controller_fmu, project_dir, tmp_path):
     from papwc.controllers import make_controller
-    from papwc.fmubuild.ssp import build_closed_loop_ssp
+    from papwc.fmubuild.ssp_writer import build_closed_loop_ssp
     from papwc.master import run_iteration
 
     text = (project_dir / "scenarios" / "paper.toml").read_text()

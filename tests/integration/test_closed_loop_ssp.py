@@ -12,10 +12,10 @@ from pathlib import Path
 import pytest
 
 from papwc.controllers import make_controller
-from papwc.fmubuild.ssp import PARAMETER_SET, build_closed_loop_ssp, closed_loop_parameters
+from papwc.fmubuild.ssp_writer import PARAMETER_SET, build_closed_loop_ssp, closed_loop_parameters
 from papwc.master import PhysicsSlave, run_iteration
-from papwc.master.ssp import read_ssp, run_ssp
-from papwc.model.settings import KIND_CODES
+from papwc.master.ssp_runner import read_ssp, run_ssp
+from papwc.model.controller_settings import KIND_CODES
 from papwc.scenario import load_scenario
 
 PROJECT_DIR = Path(__file__).resolve().parents[2]

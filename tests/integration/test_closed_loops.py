@@ -19,8 +19,8 @@ from papwc.master import (
     PhysicsSlave,
     run_controller,
     run_iteration,
-    summarize,
 )
+from papwc.results.summary import summarize
 from papwc.scenario import load_scenario
 
 T = 0.01

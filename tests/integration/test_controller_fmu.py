@@ -39,7 +39,7 @@ from papwc.master import (
     run_closed_loop,
     run_controller,
 )
-from papwc.model.settings import PULSE_CONTROLLER_VARIABLES
+from papwc.model.controller_settings import PULSE_CONTROLLER_VARIABLES
 from papwc.scenario import Scenario, load_scenario
 
 T = 0.01

@@ -18,7 +18,7 @@ import pytest
 
 from papwc.cli import main
 from papwc.controllers import make_controller
-from papwc.fmubuild.ssp import build_closed_loop_ssp
+from papwc.fmubuild.ssp_writer import build_closed_loop_ssp
 from papwc.master import PhysicsSlave, run_iteration
 from papwc.scenario import load_scenario
 
@@ -245,7 +245,7 @@ def test_an_interrupted_cosim_keeps_every_row_with_an_incomplete_marker(
 
 
 def test_two_cosims_into_one_folder_the_second_is_refused(ssp, tmp_path, capsys) -> None:
-    from papwc.output import lock_folder
+    from papwc.output_files import lock_folder
 
     out = tmp_path / "out"
     out.mkdir()
@@ -271,12 +271,12 @@ def test_a_link_planted_as_the_csvs_temporary_file_is_refused(ssp, tmp_path, cap
 
 
 def test_out_of_memory_names_the_flags_cosim_has(ssp, tmp_path, capsys, monkeypatch) -> None:
-    import papwc.cosim
+    import papwc.results.cosim_stream
 
     def no_memory(*args, **kwargs):
         raise MemoryError
 
-    monkeypatch.setattr(papwc.cosim, "cosim", no_memory)
+    monkeypatch.setattr(papwc.results.cosim_stream, "cosim", no_memory)
     assert main(["cosim", str(ssp), "--out", str(tmp_path / "out")]) == 1
     line = capsys.readouterr().err.strip()
     assert line == ("papwc cosim: error: out of memory; lower the work asked for (e.g. --stop, "
@@ -288,7 +288,7 @@ def test_cosim_memory_does_not_grow_with_the_runs_length(ssp, tmp_path) -> None:
     """Peak RSS of 2e5 steps (every output recorded) is within 10 MB of that of 4e4 steps
     (both beyond the rows the plot keeps); ``papwc bench`` measures 1e6 steps against the
     200 MB goal."""
-    from papwc.bench.cosim import cosim_peak_mb
+    from papwc.bench.cosim_memory import cosim_peak_mb
 
     short = cosim_peak_mb(ssp, tmp_path / "short", 400.0)
     long = cosim_peak_mb(ssp, tmp_path / "long", 2000.0)

@@ -22,9 +22,9 @@ from pathlib import Path
 
 import pytest
 
-from papwc.fmubuild.ssp import PARAMETER_SET, build_closed_loop_ssp
-from papwc.hostenv import libpython
-from papwc.master.ssp import read_ssp, run_ssp
+from papwc.fmubuild.ssp_writer import PARAMETER_SET, build_closed_loop_ssp
+from papwc.host_environment import libpython
+from papwc.master.ssp_runner import read_ssp, run_ssp
 
 PROJECT_DIR = Path(__file__).resolve().parents[2]
 PAPER = PROJECT_DIR / "scenarios" / "paper.toml"

@@ -19,7 +19,7 @@ from harness import GOOD
 from hostile_archives import KINDS, _corrupt, _patch_headers, damage, rezip
 
 from papwc.cli import main
-from papwc.fmubuild.ssp import build_closed_loop_ssp
+from papwc.fmubuild.ssp_writer import build_closed_loop_ssp
 
 PROJECT = Path(__file__).resolve().parents[2]
 PAPER = PROJECT / "scenarios" / "paper.toml"

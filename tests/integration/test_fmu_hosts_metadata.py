@@ -16,8 +16,8 @@ from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave
 
 from papwc.fmubuild.model_description import read_model_description as read_md_xml
+from papwc.model.controller_settings import KIND_CODES, PULSE_CONTROLLER_VARIABLES
 from papwc.model.plant import PLANT_OUTPUTS, PLANT_PARAMETERS
-from papwc.model.settings import KIND_CODES, PULSE_CONTROLLER_VARIABLES
 from papwc.model.variables import FMU_DEFAULT_SENTINEL
 
 FMPY = [sys.executable, "-m", "fmpy.cli"]

@@ -16,7 +16,7 @@ import pytest
 
 from papwc.cli import main
 from papwc.identify.excitation import apply_to_plant, design
-from papwc.identify.report import write_log
+from papwc.identify.fit_report import write_log
 from papwc.scenario import load_scenario
 
 TRUTH = {"m": 120.0, "f_c": 80.0, "f_s": 110.0, "c": 500.0}

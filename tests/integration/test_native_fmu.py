@@ -661,7 +661,7 @@ def test_a_worker_reuses_one_plant_instance_with_the_results_of_fresh_ones(
     for the next controller and run (fmi2Reset); the results are those of fresh instances."""
     import dataclasses
 
-    from papwc import runner
+    from papwc import scenario_run as runner
     from papwc.scenario import load_scenario
 
     scenario = load_scenario(paper_toml)

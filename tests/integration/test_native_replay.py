@@ -28,10 +28,10 @@ from papwc.master.native_plant import (
     binary_path,
     plant_library,
 )
-from papwc.master.pulses import PulseBound
 from papwc.model.dynamics import Plant
-from papwc.runner import run_scenario
+from papwc.results.pulses import PulseBound
 from papwc.scenario import parse_scenario
+from papwc.scenario_run import run_scenario
 
 T = 0.01
 #: The deviations of scenarios/realism.toml, and all of them that combine.

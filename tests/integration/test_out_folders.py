@@ -10,7 +10,7 @@ import pytest
 from harness import GOOD
 
 from papwc.cli import main
-from papwc.output import LOCK_NAME, lock_folder
+from papwc.output_files import LOCK_NAME, lock_folder
 
 PROJECT = Path(__file__).resolve().parents[2]
 

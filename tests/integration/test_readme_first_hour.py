@@ -92,7 +92,7 @@ def test_the_main_job_and_the_examples_run_verbatim_in_order(tmp_path) -> None:
     done = sh(EXAMPLES[2], copy, env)
     assert (copy / "results" / "cosim" / "ClosedLoop.csv").is_file(), done.stdout
 
-    # ecos: the venv's console script (papwc.hostenv:ecos_main), after a fresh install
+    # ecos: the venv's console script (papwc.host_environment:ecos_main), after a fresh install
     if shutil.which("ecos", path=env["PATH"]) is None:
         if os.environ.get("CI") == "true":
             pytest.fail("no ecos on PATH after the test install")

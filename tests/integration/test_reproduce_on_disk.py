@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-import papwc.runner
+import papwc.scenario_run
 from papwc.cli import main
 
 pytestmark = pytest.mark.slow
@@ -23,7 +23,7 @@ pytestmark = pytest.mark.slow
 
 def test_reproduce_interrupted_keeps_the_finished_controllers(
         tmp_path: Path, friction_plant_fmu: Path, capsys, monkeypatch) -> None:
-    real = papwc.runner.run_controller
+    real = papwc.scenario_run.run_controller
     seen: list[str] = []
 
     def third_interrupted(slave, settings, maneuver, label=""):
@@ -32,7 +32,7 @@ def test_reproduce_interrupted_keeps_the_finished_controllers(
             raise KeyboardInterrupt
         return real(slave, settings, maneuver, label)
 
-    monkeypatch.setattr(papwc.runner, "run_controller", third_interrupted)
+    monkeypatch.setattr(papwc.scenario_run, "run_controller", third_interrupted)
     out = tmp_path / "repro"
     (out).mkdir()
     (out / "fig3.png").write_bytes(b"an old figure")

@@ -14,7 +14,11 @@ from fmpy.ssp.ssd import Parameter, ParameterSet, read_ssd
 
 from papwc.controllers import make_controller
 from papwc.errors import BuildError
-from papwc.fmubuild.ssp import build_closed_loop_ssp, closed_loop_parameters, libcosim_step_size
+from papwc.fmubuild.ssp_writer import (
+    build_closed_loop_ssp,
+    closed_loop_parameters,
+    libcosim_step_size,
+)
 from papwc.master import Maneuver, PhysicsSlave, Trace, run_controller, run_iteration
 from papwc.scenario import Scenario, load_scenario
 

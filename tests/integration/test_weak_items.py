@@ -39,7 +39,7 @@ def test_the_resume_line_keeps_the_limits_it_needs(tmp_path, friction_plant_fmu,
                                                    monkeypatch) -> None:
     """Issue 27: the resume line dropped --max-steps, so run verbatim it was refused."""
     import papwc.battery
-    from papwc.battery.run import BatteryInterrupted
+    from papwc.battery.orchestrate import BatteryInterrupted
 
     def interrupted(*args, **kwargs):
         raise BatteryInterrupted(1, 8, tmp_path / "out" / "journal.jsonl")

@@ -8,8 +8,8 @@ import sys
 
 import pytest
 
-from papwc.analysis import drive_state, scatter
-from papwc.analysis.counts import parse_count
+from papwc.studies import drive_state, scatter
+from papwc.studies.counts import parse_count
 
 
 @pytest.mark.parametrize("main, option, high", [
@@ -42,20 +42,20 @@ def _interrupted() -> int:
 
 
 def test_an_analysis_interrupted_says_so_in_one_line_and_keeps_what_it_printed(capsys):
-    from papwc.cli import run_command
+    from papwc.exit_status import run_command
 
-    assert run_command("python -m papwc.analysis.scatter", _interrupted) == 130
+    assert run_command("python -m papwc.studies.scatter", _interrupted) == 130
     out, err = capsys.readouterr()
     assert out == "a line before\n"
-    assert err == "python -m papwc.analysis.scatter: interrupted\n"
+    assert err == "python -m papwc.studies.scatter: interrupted\n"
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
 def test_an_analysis_on_a_full_device_says_so_in_one_line():
     with open("/dev/full", "w") as full:
-        done = subprocess.run([sys.executable, "-m", "papwc.analysis.scatter", "--repeats", "1"],
+        done = subprocess.run([sys.executable, "-m", "papwc.studies.scatter", "--repeats", "1"],
                               stdout=full, stderr=subprocess.PIPE, text=True, timeout=120)
     assert done.returncode == 1
     assert done.stderr.splitlines() == [
-        "python -m papwc.analysis.scatter: error: cannot write to standard output: "
+        "python -m papwc.studies.scatter: error: cannot write to standard output: "
         "No space left on device"]

@@ -13,7 +13,7 @@ from harness import TABLE_1_TOML
 from papwc.battery import parse_battery, plan_runs, result_rows
 from papwc.battery.journal import record_problem
 from papwc.battery.report import SPEC_COLUMNS, pulse_rows, spec_rows, write_outputs
-from papwc.master.pulses import ROW_COLUMNS
+from papwc.results.pulses import ROW_COLUMNS
 
 BATTERY = 'name = "spec"\n' + TABLE_1_TOML + """\
 x_resolution = 1e-7

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from papwc.bench.battery import _descendants, _rss_kb
+from papwc.bench.battery_throughput import _descendants, _rss_kb
 
 pytestmark = pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="needs /proc")
 

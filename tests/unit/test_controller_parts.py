@@ -28,7 +28,7 @@ from papwc.controllers.trust import TRUST_MIN, TrustRegion
 from papwc.master.observers import _CONTROLLER
 from papwc.master.slave import CONTROLLER_SLAVE_VARIABLES, ControllerSlave
 from papwc.master.trace import TRACE_COLUMNS
-from papwc.model.settings import CONTROLLER_OUTPUTS
+from papwc.model.controller_settings import CONTROLLER_OUTPUTS
 
 T = 0.01
 

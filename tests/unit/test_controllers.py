@@ -20,8 +20,9 @@ from papwc.controllers.estimators import Rls2, ScalarRls
 from papwc.controllers.papwc import PapwcController, papwc_amplitude
 from papwc.controllers.pwc import PwcController
 from papwc.controllers.settings import ControllerSettings
-from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration, summarize
+from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration
 from papwc.model.pulse import b_coulomb, pulse_displacement
+from papwc.results.summary import summarize
 
 T = 0.01
 

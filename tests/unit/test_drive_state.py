@@ -1,8 +1,8 @@
-"""papwc.analysis.drive_state: planning on a model of the flexible drive, carried along."""
+"""papwc.studies.drive_state: planning on a model of the flexible drive, carried along."""
 
 from __future__ import annotations
 
-from papwc.analysis import drive_state
+from papwc.studies import drive_state
 
 
 def test_an_exact_model_lands_and_a_spring_two_percent_off_does_not():

@@ -22,8 +22,9 @@ from numpy.testing import assert_allclose
 from papwc.controllers import CONTROLLER_KINDS, Mode, make_controller
 from papwc.controllers.exact import ExactController, PulseModelEstimator
 from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, settings_for_kind
-from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration, summarize
-from papwc.model.settings import CONTROLLER_SETTINGS
+from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration
+from papwc.model.controller_settings import CONTROLLER_SETTINGS
+from papwc.results.summary import summarize
 from papwc.scenario import load_scenario
 
 T = 0.01

@@ -12,7 +12,7 @@ import pytest
 
 from papwc.cli import main
 from papwc.errors import PapwcError
-from papwc.hostenv import host_environment, libpython
+from papwc.host_environment import host_environment, libpython
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="LD_PRELOAD is Linux's")
@@ -54,9 +54,9 @@ def test_a_library_path_the_shell_or_the_loader_would_split_is_quoted_or_refused
         path, line, monkeypatch, capsys) -> None:
     """Issue 27: a space in the library path printed an unquoted line; LD_PRELOAD itself is
     split at spaces and colons by the loader, quoted or not, so such a path is refused."""
-    import papwc.hostenv
+    import papwc.host_environment
 
-    monkeypatch.setattr(papwc.hostenv, "libpython", lambda: Path(path))
+    monkeypatch.setattr(papwc.host_environment, "libpython", lambda: Path(path))
     if line is None:
         assert main(["hostenv"]) == 2
         err = capsys.readouterr().err.strip().splitlines()

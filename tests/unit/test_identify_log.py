@@ -10,8 +10,8 @@ import pytest
 
 from papwc.identify.excitation import apply_to_plant, design
 from papwc.identify.fit import check_log
+from papwc.identify.fit_report import write_log
 from papwc.identify.log_file import Columns, LogError, check_travel, parse_log, read_log
-from papwc.identify.report import write_log
 
 
 def _csv(rows: list[tuple[float | str, ...]], header: str = "time,u,x") -> str:

@@ -16,9 +16,9 @@ import pytest
 from papwc.battery import load_battery, parse_battery, plan_runs
 from papwc.errors import ScenarioError
 from papwc.limits import check_steps
+from papwc.model.controller_settings import CONTROLLER_SETTINGS
 from papwc.model.maneuver import MANEUVER_VARIABLES
 from papwc.model.plant import PLANT_PARAMETERS
-from papwc.model.settings import CONTROLLER_SETTINGS
 from papwc.scenario import field_table, load_scenario, parse_scenario
 
 PROJECT = Path(__file__).resolve().parents[2]

@@ -26,10 +26,10 @@ from papwc.master import (
     run_closed_loop,
     run_controller,
     run_iteration,
-    summarize,
 )
 from papwc.model.plant import PLANT_DEFAULTS
 from papwc.model.stickslip import quantize, simulate
+from papwc.results.summary import summarize
 
 T = 0.01
 #: Pulses above f_s both ways, coasting, a sub-stiction force, a reversal while sliding.

@@ -29,8 +29,8 @@ from papwc.model.plant import OFF_OR_AT_LEAST, PLANT_PARAMETERS
 from papwc.model.pulse import pulse_amplitude, pulse_displacement, pulse_width
 from papwc.model.stickslip import step
 from papwc.model.variables import by_name
-from papwc.runner import run_scenario
 from papwc.scenario import parse_scenario
+from papwc.scenario_run import run_scenario
 
 PLANT = by_name(PLANT_PARAMETERS)
 MANEUVER = by_name(MANEUVER_VARIABLES)

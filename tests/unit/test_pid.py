@@ -20,9 +20,10 @@ from papwc.controllers.pid import (
     trapezoid,
 )
 from papwc.controllers.settings import ControllerSettings
-from papwc.master import Maneuver, PhysicsSlave, run_controller, summarize
-from papwc.master.pulses import pulses_of
-from papwc.model.settings import OUTCOME_REASONS
+from papwc.master import Maneuver, PhysicsSlave, run_controller
+from papwc.model.controller_settings import OUTCOME_REASONS
+from papwc.results.pulses import pulses_of
+from papwc.results.summary import summarize
 
 F_MAX = 300.0
 

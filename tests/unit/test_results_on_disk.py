@@ -17,8 +17,9 @@ from pathlib import Path
 
 import pytest
 
-import papwc.output
-import papwc.runner
+import papwc.output_files
+import papwc.results.folder
+import papwc.scenario_run
 from papwc.cli import main
 
 SCENARIO = """\
@@ -62,14 +63,14 @@ def one_line(err: str) -> str:
 
 def test_ctrl_c_keeps_the_controllers_that_finished_and_marks_the_folder(
         tmp_path: Path, capsys, monkeypatch) -> None:
-    real = papwc.runner.run_controller
+    real = papwc.scenario_run.run_controller
 
     def interrupted(slave, settings, maneuver, label=""):
         if label == "second":
             raise KeyboardInterrupt
         return real(slave, settings, maneuver, label)
 
-    monkeypatch.setattr(papwc.runner, "run_controller", interrupted)
+    monkeypatch.setattr(papwc.scenario_run, "run_controller", interrupted)
     code, _, err = run(tmp_path, capsys)
     out = tmp_path / "out"
     assert code == 130
@@ -92,7 +93,7 @@ def fail_writes(monkeypatch, where, code: int) -> None:
             raise OSError(code, os.strerror(code))
         return real(src, dst)
 
-    monkeypatch.setattr(papwc.output.os, "replace", failing)
+    monkeypatch.setattr(papwc.output_files.os, "replace", failing)
 
 
 @pytest.mark.parametrize("code, reason", [(errno.ENOSPC, "No space left on device"),
@@ -169,7 +170,7 @@ def test_pulses_csv_lists_every_pulse_of_every_iteration_with_its_ratio(
         counts = {(r["controller"], r["iteration"]): int(r["pulses"]) for r in csv.DictReader(f)}
     with open(out / "pulses.csv", newline="") as f:
         rows = list(csv.DictReader(f))
-    assert list(rows[0]) == papwc.runner.PULSE_COLUMNS
+    assert list(rows[0]) == papwc.results.folder.PULSE_COLUMNS
     listed = Counter((r["controller"], r["iteration"]) for r in rows)
     assert sum(counts.values()) > 0
     assert {k: listed.get(k, 0) for k in counts} == counts
@@ -278,12 +279,12 @@ def test_ctrl_c_is_raised_between_two_steps_not_inside_the_plant(monkeypatch) ->
             super().do_step(t, h)  # completes: no exception in here
             inside[-1] = False
 
-    monkeypatch.setattr(papwc.runner, "make_plant", lambda *a, **k: Plant())
+    monkeypatch.setattr(papwc.scenario_run, "make_plant", lambda *a, **k: Plant())
     from papwc.scenario import parse_scenario
 
     scenario = parse_scenario({"name": "x", "controller": [{"kind": "papwc"}]}, "x.toml")
     with pytest.raises(KeyboardInterrupt):
-        papwc.runner.run_scenario(scenario, "physics")
+        papwc.scenario_run.run_scenario(scenario, "physics")
     assert len(inside) == 4 and not any(inside)
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 

@@ -1,4 +1,4 @@
-"""papwc.analysis.ringing: what pulses do to the flexible drive of scenarios/realism.toml."""
+"""papwc.studies.ringing: what pulses do to the flexible drive of scenarios/realism.toml."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import re
 
 import pytest
 
-from papwc.analysis import ringing
+from papwc.studies import ringing
 
 
 def test_a_flexible_drive_has_a_smallest_move_and_keeps_ringing(capsys):

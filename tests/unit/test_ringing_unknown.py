@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import pytest
 
-from papwc.analysis.ring_scan import mc_rigid, realism_rigid, ringing_runs
 from papwc.controllers import make_controller
 from papwc.controllers.rest import RING_LEG
 from papwc.controllers.settings import ControllerSettings
 from papwc.master import Maneuver, PhysicsSlave, run_controller
-from papwc.master.pulses import pulse_ratio
+from papwc.results.pulses import pulse_ratio
+from papwc.studies.ring_scan import mc_rigid, realism_rigid, ringing_runs
 
 T = 0.01
 RIGID = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
@@ -132,7 +132,7 @@ def test_a_told_mode_is_not_looked_for():
 
 @pytest.mark.slow
 def test_the_ring_scan_finds_ringing_on_a_flexible_table_only():
-    """python -m papwc.analysis.ring_scan counts what it should."""
+    """python -m papwc.studies.ring_scan counts what it should."""
     runs, seen = ringing_runs([("flex15", TABLE_15HZ), ("eq1", RIGID)])
     assert runs == 18
     assert seen and all(line.startswith("flex15 ") for line in seen)

@@ -1,7 +1,7 @@
 """The safeguards every pulse controller has around its law, each on the situation that
 needs it: rest detection on a noisy encoder, the hand-over of a creeping coarse loop, a fit
 fooled by noise, a ringing table, a Stribeck crawl; the trust region under any sequence of
-measurements; honest outcomes; the pulse bound of :mod:`papwc.master.pulses`.
+measurements; honest outcomes; the pulse bound of :mod:`papwc.results.pulses`.
 """
 
 from __future__ import annotations
@@ -30,16 +30,17 @@ from papwc.controllers.base import (
 )
 from papwc.controllers.sequencer import PulseSequencer
 from papwc.controllers.settings import ControllerSettings
-from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration, summarize
-from papwc.master.pulses import PulseBound, pulse_ratio, pulses_of
+from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration
 from papwc.master.slave import ControllerSlave
-from papwc.model.settings import (
+from papwc.model.controller_settings import (
     CONTROLLER_OUTPUTS,
     MODE_PERIODS,
     OUTCOME_REASONS,
     OUTCOMES,
     settings_problems,
 )
+from papwc.results.pulses import PulseBound, pulse_ratio, pulses_of
+from papwc.results.summary import summarize
 
 T = 0.01
 KINDS = ("pwc", "papwc", "exact")
@@ -87,7 +88,7 @@ def test_a_noisy_rest_is_detected_and_its_noise_measured():
     ctl = make_controller(settings, T)
     slave = PhysicsSlave()
     slave.set_start_values(plant)
-    from papwc.master.run import run_closed_loop
+    from papwc.master.closed_loop import run_closed_loop
 
     result = run_closed_loop(slave, ControllerSlave(ctl), Maneuver(iterations=3), settings)
     expected = math.sqrt(noise**2 + count**2 / 12.0)  # the readings' scatter at rest

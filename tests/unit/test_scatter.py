@@ -1,11 +1,11 @@
-"""papwc.analysis.scatter: the same pulse on a table whose breakaway is redrawn at every stop."""
+"""papwc.studies.scatter: the same pulse on a table whose breakaway is redrawn at every stop."""
 
 from __future__ import annotations
 
 import re
 import statistics
 
-from papwc.analysis import scatter
+from papwc.studies import scatter
 
 
 def test_the_same_pulse_scatters_on_random_stiction_and_not_without_it():

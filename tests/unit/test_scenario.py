@@ -13,9 +13,9 @@ from papwc.controllers import CONTROLLER_KINDS
 from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, settings_for_kind
 from papwc.errors import ScenarioError
 from papwc.master import Maneuver
+from papwc.model.controller_settings import CONTROLLER_SETTINGS
 from papwc.model.maneuver import MANEUVER_DEFAULTS, MANEUVER_VARIABLES
 from papwc.model.plant import PLANT_DEFAULTS
-from papwc.model.settings import CONTROLLER_SETTINGS
 from papwc.model.units import UNIT_DEFINITIONS
 from papwc.model.variables import Variable, problems
 from papwc.scenario import controller_label, load_scenario, parse_scenario

@@ -1,3 +1,4 @@
-"""The paper reproduced: its formulas (:mod:`.paper`), ``papwc reproduce`` (:mod:`.reproduce`),
-its simulation claims under the readings the paper leaves open (:mod:`.claims`) and the plots
-of runs (:mod:`.plots`)."""
+"""The paper reproduced: its formulas (:mod:`.paper`), its simulation claims under the readings
+the paper leaves open (:mod:`.claims`, :mod:`.readings`, :mod:`.run_metrics`,
+:mod:`.claim_runs`) and ``papwc reproduce``'s figures, tables and report
+(:mod:`.reproduction`)."""

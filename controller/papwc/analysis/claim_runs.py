@@ -48,7 +48,7 @@ def _roles(scenario) -> list[str]:
 def _run_task(scenario, task: _Task, plant: str, fmu: str | None,
               unzip_dir: str | None) -> RunMetrics:
     from papwc.master import run_controller
-    from papwc.runner import make_plant
+    from papwc.scenario_run import make_plant
 
     settings, label = _role_settings(scenario, task.role)
     settings = apply_reading(settings, dict(task.overrides))

@@ -575,7 +575,7 @@ def write_claims(out: Path, scenario: Scenario, results: Sequence[RunResult],
     ``workers`` processes (default: the cores available) and ``readings.csv``
     lists every reading searched. Returns the claims section of ``report.md``.
     """
-    from papwc.output import write_rows
+    from papwc.output_files import write_rows
 
     table = None
     if search:

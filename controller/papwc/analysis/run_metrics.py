@@ -9,7 +9,8 @@ from dataclasses import dataclass
 
 from papwc.controllers import Mode
 from papwc.controllers.settings import ControllerSettings
-from papwc.master import RunResult, Trace, summarize
+from papwc.master import RunResult, Trace
+from papwc.results.summary import summarize
 
 __all__ = ["FIRST_PULSES", "FIXED", "ROLES", "WINDOW", "RunMetrics", "adaptation_per_pulse",
            "pulse_list", "role_of", "run_metrics", "sign_switches"]

@@ -98,13 +98,13 @@ Outputs of :func:`run_battery` in the output folder:
   the wrong shape or of other parameters) is skipped with a warning and its run
   computed again (see :mod:`papwc.battery.journal`). On Ctrl-C the runs that
   finished are in it and the message says how to resume.
-  ``.papwc.lock`` (:func:`papwc.output.lock_folder`) keeps two commands from writing into
+  ``.papwc.lock`` (:func:`papwc.output_files.lock_folder`) keeps two commands from writing into
   one folder.
 - ``results.csv`` -- one row per run, controller and iteration, in the order of
   the runs (battery, case, grid point, draw), controller and iteration: the
   case (a ``case`` column when a battery has cases), the varied fields (one
   column per path; a ``controller.F`` column holds the row's controller's value), the
-  metrics of :func:`papwc.recording.summarize`, ``success``, ``status`` and
+  metrics of :func:`papwc.results.summary.summarize`, ``success``, ``status`` and
   ``message``; ``last_iteration`` marks each controller's final row.
 - ``runs.csv`` -- one row per run with its status and every resolved parameter.
 - ``pulses.csv`` -- every pulse of every run, controller and iteration: the run's
@@ -119,14 +119,19 @@ Outputs of :func:`run_battery` in the output folder:
   last iteration; then the spec table (``spec.csv``).
 - ``final_error_<battery>.png`` -- distribution (empirical CDF) of |final error|
   per controller on a log axis.
+
+Its modules: :mod:`.schema` (the file), :mod:`.plan` (cases, grid and draws), :mod:`.worker`
+(one run), :mod:`.engines` (local processes, Dask) and :mod:`.dask_cluster`, :mod:`.journal`,
+:mod:`.report` (the files above) and :mod:`.orchestrate` (:func:`run_battery`: plan, journal,
+engine, report).
 """
 
 from papwc.battery.dask_cluster import local_dask_cluster
 from papwc.battery.engines import default_workers
 from papwc.battery.journal import JOURNAL_NAME, read_journal
+from papwc.battery.orchestrate import BatteryOutcome, run_battery
 from papwc.battery.plan import RunSpec, get_field, plan_runs
 from papwc.battery.report import METRICS, result_rows, summary_markdown, write_outputs
-from papwc.battery.run import BatteryOutcome, run_battery
 from papwc.battery.schema import Battery, Distribution, load_battery, parse_battery
 from papwc.battery.worker import execute_run
 from papwc.errors import BatteryError

@@ -24,7 +24,7 @@ from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 from papwc.errors import BatteryError, OutputError
-from papwc.output import create_new, lock_folder, os_error_text
+from papwc.output_files import create_new, lock_folder, os_error_text
 
 # --- journal ---------------------------------------------------------------------------------
 
@@ -220,7 +220,7 @@ class Journal:
         self.warnings: list[str] = []
         self._planned = planned
         self._key = header.get("key")
-        from papwc.output import make_folder
+        from papwc.output_files import make_folder
 
         make_folder(path.parent)
         if path.exists() and not path.is_file():

@@ -9,8 +9,8 @@ from pathlib import Path
 from papwc.battery.plan import RunSpec, controller_tables, get_field
 from papwc.battery.schema import Battery
 from papwc.controllers.settings import ControllerSettings
-from papwc.master.pulses import ROW_COLUMNS
-from papwc.output import save_figure
+from papwc.output_files import save_figure
+from papwc.results.pulses import ROW_COLUMNS
 from papwc.scenario import (
     PLANT_FIELDS,
     controller_label,
@@ -20,7 +20,7 @@ from papwc.scenario import (
 
 
 #: Metrics per iteration, as :func:`papwc.master.summarize` returns them, then the
-#: largest ratio of a pulse's displacement to its bound (:mod:`papwc.master.pulses`) and
+#: largest ratio of a pulse's displacement to its bound (:mod:`papwc.results.pulses`) and
 #: whether the iteration ended farther from the target than it started.
 METRICS = ("final_error_m", "pulses", "settle_time_s", "limit_cycle", "cycle_p2p_m",
            "b_hat", "f_c_hat", "outcome", "outcome_reason", "pulse_ratio", "ends_farther")
@@ -122,7 +122,7 @@ def _fmt(x: float, spec: str) -> str:
 def pulse_rows(runs: list[RunSpec], records: dict, has_cases: bool) -> list[dict]:
     """Rows of pulses.csv: every pulse of every run, controller and iteration, in run order.
 
-    The columns of ``papwc run``'s pulses.csv (:data:`papwc.runner.PULSE_COLUMNS`) after
+    The columns of ``papwc run``'s pulses.csv (:data:`papwc.results.folder.PULSE_COLUMNS`) after
     the run's battery, id, hash (and case).
     """
     out = []
@@ -218,7 +218,7 @@ def spec_markdown(battery: Battery, spec: list[dict]) -> list[str]:
              "with a count), the settle time (median and p95 over the runs; inf: more "
              "than that share did not end `settled`), false `settled` and `time_ended`. "
              "Every iteration: runaway pulses (beyond max(1.5*abs(e) + one count, the "
-             "smallest pulse), `papwc.master.pulses`) of the pulses that moved, fired at "
+             "smallest pulse), `papwc.results.pulses`) of the pulses that moved, fired at "
              "abs(e) >= 1 um and below, the largest move of a runaway pulse, and the "
              "maneuvers that ended farther from the target than they started. Every pulse "
              "is in `pulses.csv`.", "",
@@ -265,7 +265,7 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
               "ratio* is the largest ratio of a pulse's displacement (to the next rest) to the "
               "larger of 1.5*|e| + one encoder count and the smallest pulse the controller "
               "can make (one sample at its lowest height, on the run's plant in its state "
-              "then; `papwc.master.pulses`), > 1 a runaway pulse; *runaway maneuvers* "
+              "then; `papwc.results.pulses`), > 1 a runaway pulse; *runaway maneuvers* "
               "counts the maneuvers (iterations) with a runaway pulse (a ratio above "
               "1 + 1e-9: the replay's rounding); *farther* counts the maneuvers that ended "
               "farther from the target than they started.", ""]
@@ -395,7 +395,7 @@ def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], reco
                   fmu_sha256: str) -> list[Path]:
     """Write results.csv, runs.csv, pulses.csv, spec.csv, summary.md and the plots from the
     records (each file atomically)."""
-    from papwc.output import write_rows, write_text
+    from papwc.output_files import write_rows, write_text
 
     rows = result_rows(batteries, runs, records)
     varied = list(dict.fromkeys(p for b in batteries for p in b.varied))

@@ -13,9 +13,9 @@ from statistics import NormalDist
 from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings
 from papwc.errors import ScenarioError
 from papwc.limits import DEFAULT_RUN_TIMEOUT
+from papwc.model.controller_settings import CONTROLLER_SETTINGS
 from papwc.model.maneuver import MANEUVER_VARIABLES
 from papwc.model.plant import PLANT_PARAMETERS
-from papwc.model.settings import CONTROLLER_SETTINGS
 from papwc.model.variables import by_name
 from papwc.scenario import (
     MANEUVER_FIELDS,

@@ -86,15 +86,16 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         ``"error"``), ``message``, and per controller its label, kind,
         tolerance, error and the metrics of every iteration (those of
         :func:`papwc.master.summarize`, the largest ratio of a pulse's
-        displacement to its bound, :func:`papwc.master.pulses.pulse_ratio`, and
+        displacement to its bound, :func:`papwc.results.pulses.pulse_ratio`, and
         whether the iteration ended farther from the target than it started),
         and ``pulses``: every pulse of every iteration (:func:`pulse_rows`).
         Exceptions are caught and recorded, never raised.
     """
-    from papwc.master import summarize
+    from papwc.interrupts import RunTimeout
     from papwc.master.native_plant import plant_library
-    from papwc.master.pulses import pulse_ratio
-    from papwc.runner import RunTimeout, run_scenario
+    from papwc.results.pulses import pulse_ratio
+    from papwc.results.summary import summarize
+    from papwc.scenario_run import run_scenario
 
     start = time.perf_counter()
     record = {"type": "run", "battery": task["battery"], "run_id": task["run_id"],
@@ -141,8 +142,8 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
 
 def pulse_rows(traces, plant: dict, T: float) -> list[dict]:
     """Every pulse of every iteration as a row of ``papwc run``'s pulses.csv, its iteration
-    first (:meth:`papwc.master.pulses.PulseBound.rows`)."""
-    from papwc.master.pulses import PulseBound
+    first (:meth:`papwc.results.pulses.PulseBound.rows`)."""
+    from papwc.results.pulses import PulseBound
 
     bound = PulseBound(plant, T)
     return [{"iteration": trace.iteration, **row} for trace in traces

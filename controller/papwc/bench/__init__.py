@@ -3,7 +3,8 @@
 A section is a function ``f(context) -> list[Row]`` registered with
 :func:`register_section`; :func:`run_sections` calls every registered section
 in order and prints its rows as a small table. The sections are in
-:mod:`.plant`, :mod:`.master`, :mod:`.battery`, :mod:`.realism` and :mod:`.cosim`; add
+:mod:`.plant_calls`, :mod:`.native_step`, :mod:`.master_step`, :mod:`.battery_throughput`,
+:mod:`.realism_time`, :mod:`.cosim_memory` and :mod:`.identify_time`; add
 one by writing such a function in a module imported by :func:`load_sections` and decorating it::
 
     @register_section("closed loop")
@@ -187,7 +188,8 @@ def median_interleaved(
 
 
 #: Modules that register sections, in the order their sections run.
-SECTION_MODULES = ("plant", "native", "master", "battery", "realism", "cosim", "identify")
+SECTION_MODULES = ("plant_calls", "native_step", "master_step", "battery_throughput",
+                   "realism_time", "cosim_memory", "identify_time")
 
 
 def load_sections() -> list[Section]:

@@ -76,8 +76,8 @@ def run(args: argparse.Namespace) -> int:
     """Run the batteries; return 0, or 1 if any run has status error."""
     from papwc.battery import BatteryError, load_battery, run_battery
     from papwc.battery.engines import default_workers
-    from papwc.battery.run import BatteryInterrupted
-    from papwc.runner import ensure_plant_fmu
+    from papwc.battery.orchestrate import BatteryInterrupted
+    from papwc.scenario_run import ensure_plant_fmu
 
     if args.workers is not None:
         most = WORKERS_PER_CORE * default_workers()
@@ -116,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
               f"journal {stop.journal}; to finish, run: papwc battery {again} --out "
               f"{shlex.quote(str(out))}{extra} --resume", file=sys.stderr)
         if _TERMINATED["by"]:
-            from papwc.runner import Terminated
+            from papwc.interrupts import Terminated
 
             raise Terminated from None
         raise

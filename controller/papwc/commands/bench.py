@@ -41,7 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Build the FMUs unless given, run every bench section, print the figures; return 0."""
     from papwc.bench import BenchContext, load_sections, run_sections
-    from papwc.bench.native import PYTHONFMU_PLANT
+    from papwc.bench.native_step import PYTHONFMU_PLANT
     from papwc.fmubuild.fmus import build_all, build_fmu
 
     sections = load_sections()

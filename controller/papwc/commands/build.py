@@ -68,7 +68,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Build every FMU and the SSP into ``args.out``; print each path written; return 0."""
     from papwc.fmubuild.fmus import build_all
-    from papwc.fmubuild.ssp import build_closed_loop_ssp
+    from papwc.fmubuild.ssp_writer import build_closed_loop_ssp
     from papwc.resources import scenario_file
 
     out = default_out(args.out, "build")

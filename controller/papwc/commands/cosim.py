@@ -47,7 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run the SSP; print what was written; 0, or 1 if a step failed (rows before it kept)."""
-    from papwc.cosim import cosim
+    from papwc.results.cosim_stream import cosim
     out = default_out(args.out, "results", "cosim")
     # The master reads the FMUs' log and reports a refusal itself, in one line.
     os.environ["PAPWC_FMU_STDERR"] = "0"

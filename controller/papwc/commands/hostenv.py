@@ -24,7 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the line (or the value); 0."""
-    from papwc.hostenv import host_environment
+    from papwc.host_environment import host_environment
 
     line = host_environment()
     if args.value:

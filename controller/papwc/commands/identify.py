@@ -144,13 +144,13 @@ def run(args: argparse.Namespace) -> int:
     """Identify a log, design the excitation, or identify an FMU; return 0."""
     from papwc.identify.excitation import apply_to_fmu, check_fmu, design
     from papwc.identify.fit import check_log, identify
-    from papwc.identify.log_file import Columns, check_travel, read_log
-    from papwc.identify.report import (
+    from papwc.identify.fit_report import (
         IdentifyFolder,
         write_excitation,
         write_identification,
         write_log,
     )
+    from papwc.identify.log_file import Columns, check_travel, read_log
 
     mode, deviations = _check(args)
     columns = Columns(args.time_column, args.force_column, args.position_column,

@@ -43,7 +43,7 @@ def run(args: argparse.Namespace) -> int:
 
     if args.workers is not None and args.workers < 1:
         raise PapwcError(f"--workers {args.workers}: must be >= 1")
-    from papwc.analysis.reproduce import reproduce
+    from papwc.analysis.reproduction import reproduce
 
     return reproduce(Path(args.out), args.scenario, args.fmu, readings=args.readings,
                      workers=args.workers)

@@ -57,14 +57,9 @@ def run(args: argparse.Namespace) -> int:
     import sys
 
     from papwc.limits import check_steps
-    from papwc.runner import (
-        ResultsFolder,
-        ensure_plant_fmu,
-        format_table,
-        run_into_folder,
-        run_scenario,
-    )
+    from papwc.results.folder import ResultsFolder, format_table, run_into_folder
     from papwc.scenario import load_scenario
+    from papwc.scenario_run import ensure_plant_fmu, run_scenario
 
     scenario = load_scenario(args.scenario)
     m = scenario.maneuver

@@ -24,7 +24,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from ..model.settings import MODE_PERIODS
+from ..model.controller_settings import MODE_PERIODS
 from .interface import Controller, Mode, Outcome, Reason
 from .rest import BAND_SIGMAS, NOISE_DWELL, NOISE_MEMORY, NOISE_WINDOW, RestDetector
 from .sequencer import PRECISION_MIN, X_LIMIT, Z_ACT, Z_DECIDE, PulseSequencer

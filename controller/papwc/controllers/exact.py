@@ -121,7 +121,7 @@ class ExactController(PulseControllerBase):
     below the known height probe f_s.
 
     It reads the settings of kind ``exact`` (see
-    :data:`papwc.model.settings.CONTROLLER_SETTINGS`): ``c_est`` (initial
+    :data:`papwc.model.controller_settings.CONTROLLER_SETTINGS`): ``c_est`` (initial
     estimate of c, N.s/m), ``history`` (pulses kept for the fit), ``max_pulses``
     (pulses per maneuver after which it stops), ``x_resolution`` (resolution of
     the measurement, m, weights the fit), ``f_s_tol`` (relative width of the

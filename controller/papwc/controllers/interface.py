@@ -4,7 +4,7 @@ A controller sees what a real one sees: the time and the measured position (an
 encoder), never the velocity nor the plant's stuck flag. At every sample
 :meth:`Controller.update` returns the force to hold over the next sample
 (zero-order hold). Its other outputs are :meth:`Controller.outputs`, keyed by the
-names of :data:`papwc.model.settings.CONTROLLER_OUTPUTS` (all but ``u``, which
+names of :data:`papwc.model.controller_settings.CONTROLLER_OUTPUTS` (all but ``u``, which
 ``update`` returns): they are declared there once, and the controller slave,
 PulseController.fmu and the trace read them by those names. Its state is a named
 mapping (:meth:`Controller.state`) that PulseController.fmu's get/set state
@@ -23,7 +23,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from ..model.settings import CONTROLLER_OUTPUTS, OUTCOME_REASONS, OUTCOMES
+from ..model.controller_settings import CONTROLLER_OUTPUTS, OUTCOME_REASONS, OUTCOMES
 from .settings import ControllerSettings, settings_for_kind
 
 __all__ = ["OUTPUT_NAMES", "Controller", "Mode", "Outcome", "Reason", "default_outputs"]

@@ -44,7 +44,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-from ..model.settings import OUTCOME_REASONS
+from ..model.controller_settings import OUTCOME_REASONS
 from .base import PulseControllerBase
 from .interface import Mode
 from .sequencer import X_LIMIT, PulseSequencer

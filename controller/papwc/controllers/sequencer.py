@@ -15,7 +15,7 @@ The sequence within one maneuver:
    0. A controller that gives up (the law refuses to plan, the pulse budget is
    spent, no pulse can bring the mass nearer) *stops*: output 0 until the next
    maneuver. Either way ``outcome`` and ``outcome_reason`` say how the maneuver
-   ended (:data:`papwc.model.settings.OUTCOMES`, ``OUTCOME_REASONS``).
+   ended (:data:`papwc.model.controller_settings.OUTCOMES`, ``OUTCOME_REASONS``).
 
 Rest is read by a :class:`~.rest.RestDetector`. With encoder noise sigma > 0
 the sequencer decides on the averaged reading ``x_hat`` at N = D + 1 readings

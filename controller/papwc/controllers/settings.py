@@ -1,7 +1,7 @@
 """Settings of a pulse controller: one ``[[controller]]`` table of a scenario file.
 
 Standard library only. :class:`ControllerSettings` is built from the table
-:data:`papwc.model.settings.CONTROLLER_SETTINGS`: one attribute per setting
+:data:`papwc.model.controller_settings.CONTROLLER_SETTINGS`: one attribute per setting
 (``lam`` for ``lambda``), its default from there, and :meth:`~ControllerSettings.problems`
 checks the values against the ranges written there. The scenario reader and the
 controller FMU both use it; adding a setting is one entry in that table.
@@ -13,7 +13,7 @@ import dataclasses
 from collections.abc import Mapping
 from typing import Any
 
-from ..model.settings import CONTROLLER_SETTINGS, settings_problems
+from ..model.controller_settings import CONTROLLER_SETTINGS, settings_problems
 from ..model.variables import by_name
 
 __all__ = ["ControllerSettings", "SETTINGS_BY_NAME", "settings_for_kind"]

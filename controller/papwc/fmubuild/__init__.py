@@ -6,6 +6,6 @@
 - :mod:`.pythonfmu_build`: the one recipe every FMU goes through (pythonfmu,
   model description from the model layer, reproducible archive, validation);
 - :mod:`.model_description`: completing a model description from the metadata;
-- :mod:`.ssp`: ``ClosedLoop.ssp``;
+- :mod:`.ssp_writer`: ``ClosedLoop.ssp``;
 - :mod:`.reference`: FrictionPlant's reference result (FMI cross-check layout).
 """

@@ -28,8 +28,8 @@ import papwc
 from papwc.errors import BuildError
 from papwc.fmubuild.model_description import read_model_description
 from papwc.fmubuild.pythonfmu_build import STATE_OPTIONS, FmuSource, build_pythonfmu, guid
+from papwc.model.controller_settings import PULSE_CONTROLLER_VARIABLES
 from papwc.model.plant import PLANT_VARIABLES
-from papwc.model.settings import PULSE_CONTROLLER_VARIABLES
 from papwc.model.variables import Variable
 from papwc.resources import checkout_root, fmu_src_dir
 

@@ -31,6 +31,7 @@ import zipfile
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from papwc import __version__
 from papwc.errors import BuildError, OutputError
 from papwc.model.units import UNIT_DEFINITIONS
 from papwc.model.variables import FMU_DEFAULT_SENTINEL, Variable
@@ -206,6 +207,7 @@ def complete_model_description(
     if guid is not None:
         root.set("guid", guid)
     root.attrib.pop("generationDateAndTime", None)
+    root.set("version", __version__)
     units: set[str] = set()
     for sv in scalars:
         var = meta[sv.get("name")]

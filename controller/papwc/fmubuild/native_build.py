@@ -46,6 +46,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from papwc import __version__
 from papwc.errors import BuildError
 from papwc.fmubuild.model_description import (
     MODEL_DESCRIPTION,
@@ -321,7 +322,7 @@ def model_description_skeleton(source: NativeSource, guid_text: str,
     """The model description's elements a pythonfmu build would write (completed later)."""
     root = ET.Element("fmiModelDescription", {
         "fmiVersion": "2.0", "modelName": source.name, "guid": guid_text,
-        "description": source.description, "author": "papwc", "version": "0.1.0",
+        "description": source.description, "author": "papwc", "version": __version__,
         "license": "BSD-2-Clause", "generationTool": "papwc (native FMU, zig)",
         "variableNamingConvention": "structured", "numberOfEventIndicators": "0",
     })

@@ -6,7 +6,7 @@ noise are estimated (:mod:`.motion`); ``m``, ``f_c``, ``c`` are started by linea
 the sliding samples, ``f_s`` is bracketed by the rests, then everything is refined by output
 error through :class:`papwc.model.dynamics.Plant` with the force replayed, and the deviations
 the data support are added (:mod:`.fit`). :mod:`.excitation` designs the force to apply to a
-machine and applies it to a plant or an FMU; :mod:`.report` writes ``plant.toml``,
+machine and applies it to a plant or an FMU; :mod:`.fit_report` writes ``plant.toml``,
 ``identified.csv``, ``report.md`` and its figures.
 """
 

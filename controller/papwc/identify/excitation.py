@@ -232,8 +232,9 @@ def apply_to_fmu(fmu: str | os.PathLike, u: np.ndarray, h: float,
         If the FMU cannot be loaded, has no such variable, or refuses a call.
     """
     from papwc.errors import FmuError
+    from papwc.interrupts import deferred_interrupt
     from papwc.master.fmu import FmuSlave
-    from papwc.runner import _guard_steps, deferred_interrupt
+    from papwc.scenario_run import _guard_steps
 
     slave = FmuSlave(fmu)
     try:

@@ -31,9 +31,9 @@ from typing import Any, Protocol
 
 from papwc.controllers import Controller
 from papwc.errors import FmuError
+from papwc.model.controller_settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 from papwc.model.dynamics import Plant
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES, plant_problems
-from papwc.model.settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
 
 __all__ = ["ControllerSlave", "PhysicsSlave", "SignalSlave", "Slave"]
 

@@ -18,7 +18,7 @@ against the model descriptions of the FMUs it holds, before anything runs:
   baseStepSize``) or of OMSimulator's (``oms:FixedStepMaster stepSize``).
 
 Every problem raises :class:`papwc.errors.SspError` naming the archive and the
-SSD element. :func:`papwc.master.ssp.run_ssp` runs what it returns.
+SSD element. :func:`papwc.master.ssp_runner.run_ssp` runs what it returns.
 """
 
 from __future__ import annotations

@@ -9,6 +9,6 @@ Standard library only, so that the FMUs can bundle it under names of their own:
 - :mod:`.pulse`: the pulse model, Eq. (2)-(4), forward and inverse;
 - :mod:`.variables`: what a parameter, setting, input or output is (name,
   unit, default, range) and how values are checked;
-- :mod:`.plant`, :mod:`.maneuver`, :mod:`.settings`: the tables of the plant's
+- :mod:`.plant`, :mod:`.maneuver`, :mod:`.controller_settings`: the tables of the plant's
   variables, the maneuver's fields and the controllers' settings and signals.
 """

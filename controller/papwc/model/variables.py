@@ -5,7 +5,7 @@ everything the rest of the project needs to know about one quantity: the FMU
 variable declarations, the model description's units and ranges, the SSP
 writer, scenario validation and the master's in-process plant all read it, so
 adding a parameter is one entry in a table of :mod:`papwc.model.plant`,
-:mod:`papwc.model.maneuver` or :mod:`papwc.model.settings`.
+:mod:`papwc.model.maneuver` or :mod:`papwc.model.controller_settings`.
 
 Validation messages have one form, ``"<name> = <value> <unit>: must ..."``,
 e.g. ``"K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"``.

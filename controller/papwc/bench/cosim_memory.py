@@ -49,7 +49,7 @@ def cosim_peak_mb(ssp: Path, out: Path, stop: float) -> float:
 @register_section("papwc cosim: peak resident memory (MB) against the run's length")
 def cosim_memory(context: BenchContext) -> list[Row]:
     """Peak RSS of 1e3 and 1e6 steps (quick: 1e3 and 1e5) of the closed loop's SSP."""
-    from papwc.fmubuild.ssp import build_closed_loop_ssp
+    from papwc.fmubuild.ssp_writer import build_closed_loop_ssp
     from papwc.resources import scenario_file
 
     long_steps = 100_000 if context.quick else 1_000_000

@@ -10,7 +10,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from papwc.master import RunResult  # noqa: E402
-from papwc.output import save_figure  # noqa: E402
+from papwc.output_files import save_figure  # noqa: E402
 
 
 def _first_last(result: RunResult):

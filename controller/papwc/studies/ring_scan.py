@@ -12,7 +12,7 @@ and counts the runs after which a controller has seen ringing (``trust.ring``, s
 :mod:`papwc.controllers.rest`). With none, every figure of those tables is what it was
 before the ringing detection existed: the detection changes nothing until it fires.
 
-    python -m papwc.analysis.ring_scan [--draws 12]
+    python -m papwc.studies.ring_scan [--draws 12]
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import sys
 from papwc.controllers import make_controller
 from papwc.controllers.settings import ControllerSettings
 from papwc.master import Maneuver, PhysicsSlave
-from papwc.master.run import run_closed_loop
+from papwc.master.closed_loop import run_closed_loop
 from papwc.master.slave import ControllerSlave
 from papwc.model.plant import plant_problems
 
@@ -99,7 +99,7 @@ def ringing_runs(tables: list[tuple[str, dict]]) -> tuple[int, list[str]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m papwc.analysis.ring_scan",
+    parser = argparse.ArgumentParser(prog="python -m papwc.studies.ring_scan",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--draws", type=int, default=12, choices=range(0, 1001),
                         metavar="N", help="Monte Carlo draws of each file (0-1000)")

@@ -56,7 +56,7 @@ def realism_wall_time(context: BenchContext) -> list[Row]:
     """Run ``scenarios/realism.toml`` (every case, target and seed) on 2 workers with the
     native plant and with the pythonfmu plant; time both, compare results.csv."""
     from papwc.battery import BatteryError, load_battery
-    from papwc.bench.native import PYTHONFMU_PLANT
+    from papwc.bench.native_step import PYTHONFMU_PLANT
     from papwc.resources import scenario_file
 
     battery = load_battery(scenario_file("realism.toml"))

@@ -1,6 +1,6 @@
 """``papwc cosim``: run an SSP with the project's master and write a CSV and a plot.
 
-The logic is :mod:`papwc.master.ssp`; here the results are written, as they
+The logic is :mod:`papwc.master.ssp_runner`; here the results are written, as they
 come: ``<out>/<stem>.csv`` (``time`` and the recorded variables, floats in full
 precision) is streamed row by row into its temporary file, so that the memory a
 run takes does not grow with its length, and ``<out>/<stem>.png`` (one panel
@@ -23,8 +23,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from papwc.master.ssp import SspSession, read_ssp
-from papwc.output import (
+from papwc.master.ssp_runner import SspSession, read_ssp
+from papwc.output_files import (
     create_new,
     format_value,
     lock_folder,
@@ -159,7 +159,7 @@ def cosim(
         refuses its parameters, :class:`~papwc.errors.OutputError` if the folder
         cannot be written or another command writes into it.
     """
-    from papwc.runner import Terminated, deferred_interrupt, interrupt_requested, interruption
+    from papwc.interrupts import Terminated, deferred_interrupt, interrupt_requested, interruption
 
     system = read_ssp(ssp)
     session = SspSession(system, variables, step=step, stop=stop)

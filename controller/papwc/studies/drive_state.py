@@ -14,17 +14,17 @@ the ``flexible`` case of ``scenarios/realism.toml`` (the model layer's plant,
   the model lands on the target ``REST`` s later;
 * it prints, per model, where the machine landed against each target.
 
-Run ``python -m papwc.analysis.drive_state [--moves N]``; it prints one line per model.
+Run ``python -m papwc.studies.drive_state [--moves N]``; it prints one line per model.
 """
 
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 
-from papwc.analysis.counts import parse_count
-from papwc.analysis.ringing import flexible_plant
 from papwc.model.dynamics import Plant
 from papwc.model.pulse import bisect_increasing
+from papwc.studies.counts import parse_count
+from papwc.studies.ringing import flexible_plant
 
 __all__ = ["MODELS", "landings", "main"]
 
@@ -113,7 +113,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     ``argv`` (default ``sys.argv[1:]``): ``--moves N`` (1 to ``MOVES_MAX``, default
     ``MOVES``); anything else is refused (exit 2).
     """
-    moves = parse_count(argv, "python -m papwc.analysis.drive_state",
+    moves = parse_count(argv, "python -m papwc.studies.drive_state",
                         "one-sample pulses on the flexible drive of scenarios/realism.toml "
                         "planned on a model of the drive carried along with the force: the "
                         "landing errors", "--moves", MOVES, MOVES_MAX, "moves per model")
@@ -129,6 +129,6 @@ def main(argv: Sequence[str] | None = None) -> None:
 if __name__ == "__main__":
     import sys
 
-    from papwc.cli import run_command
+    from papwc.exit_status import run_command
 
-    sys.exit(run_command("python -m papwc.analysis.drive_state", main))
+    sys.exit(run_command("python -m papwc.studies.drive_state", main))

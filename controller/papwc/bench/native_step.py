@@ -17,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from papwc.bench import BenchContext, Row, gc_paused, median_interleaved, register_section
-from papwc.bench.plant import plant_forces, slave_methods_loop
+from papwc.bench.plant_calls import plant_forces, slave_methods_loop
 
 #: The pythonfmu FrictionPlant, relative to the bench's FMU folder.
 PYTHONFMU_PLANT = "pythonfmu/FrictionPlant.fmu"

@@ -48,8 +48,8 @@ from pathlib import Path
 from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, settings_for_kind
 from papwc.errors import BuildError, OutputError, PapwcError
 from papwc.fmubuild.model_description import read_model_description
+from papwc.model.controller_settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, KIND_CODES
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_INPUTS, PLANT_OUTPUTS, SCENARIO_PLANT_FIELDS
-from papwc.model.settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, KIND_CODES
 from papwc.model.units import UNIT_DEFINITIONS
 from papwc.model.variables import FMU_DEFAULT_SENTINEL
 from papwc.scenario import Scenario, load_scenario

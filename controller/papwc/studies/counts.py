@@ -1,4 +1,4 @@
-"""The command line of an analysis that takes one count (``python -m papwc.analysis.X``)."""
+"""The command line of an analysis that takes one count (``python -m papwc.studies.X``)."""
 
 from __future__ import annotations
 

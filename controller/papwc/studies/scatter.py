@@ -12,7 +12,7 @@ beyond the runaway bound ``1.5*|e|`` that often, however well its median is know
 line ends with ``1.5/(largest/median)``, the largest fraction of ``|e|`` such a pulse could
 be planned for and never pass the bound over these repetitions.
 
-Run ``python -m papwc.analysis.scatter [--repeats N]``; it prints one line per height.
+Run ``python -m papwc.studies.scatter [--repeats N]``; it prints one line per height.
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ import statistics
 import tomllib
 from collections.abc import Sequence
 
-from papwc.analysis.counts import parse_count
 from papwc.model.dynamics import Plant
 from papwc.resources import scenario_file
+from papwc.studies.counts import parse_count
 
 __all__ = ["CASES", "HEIGHTS", "main", "repeated_pulse", "table"]
 
@@ -72,7 +72,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     ``argv`` (default ``sys.argv[1:]``): ``--repeats N`` (1 to ``REPEATS_MAX``, default
     ``REPEATS``); anything else is refused (exit 2).
     """
-    repeats = parse_count(argv, "python -m papwc.analysis.scatter",
+    repeats = parse_count(argv, "python -m papwc.studies.scatter",
                           "how far the same one-sample pulse moves a table of scenarios/"
                           "realism_mc.toml whose breakaway force is redrawn at every stop",
                           "--repeats", REPEATS, REPEATS_MAX, "pulses per height")
@@ -100,6 +100,6 @@ def main(argv: Sequence[str] | None = None) -> None:
 if __name__ == "__main__":
     import sys
 
-    from papwc.cli import run_command
+    from papwc.exit_status import run_command
 
-    sys.exit(run_command("python -m papwc.analysis.scatter", main))
+    sys.exit(run_command("python -m papwc.studies.scatter", main))

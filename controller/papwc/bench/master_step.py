@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 
 from papwc.bench import BenchContext, Row, gc_paused, median_interleaved, register_section
-from papwc.bench.plant import fmpy_loop
+from papwc.bench.plant_calls import fmpy_loop
 
 #: A closed-loop step of the master (controller and recording included) may cost at most
 #: this multiple of fmpy's FMU2Slave.setReal + doStep + getReal on the same FMU.

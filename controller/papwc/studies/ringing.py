@@ -15,7 +15,7 @@ samples of T:
   newton moves the table some um, so a move known to 1 um needs the height known against
   a breakaway, set by the spring force the drive is left with, to a fraction of a newton.
 
-Run ``python -m papwc.analysis.ringing``; it prints one line per pulse.
+Run ``python -m papwc.studies.ringing``; it prints one line per pulse.
 """
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     Takes no arguments (``argv``, default ``sys.argv[1:]``); any given is refused (exit 2).
     """
     argparse.ArgumentParser(
-        prog="python -m papwc.analysis.ringing",
+        prog="python -m papwc.studies.ringing",
         description="what one-period pulses do to the flexible drive of scenarios/realism.toml",
     ).parse_args(argv)
     params, f_mode, T = flexible_plant()
@@ -131,6 +131,6 @@ def main(argv: Sequence[str] | None = None) -> None:
 if __name__ == "__main__":
     import sys
 
-    from papwc.cli import run_command
+    from papwc.exit_status import run_command
 
-    sys.exit(run_command("python -m papwc.analysis.ringing", main))
+    sys.exit(run_command("python -m papwc.studies.ringing", main))

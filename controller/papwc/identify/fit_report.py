@@ -25,8 +25,8 @@ import numpy as np
 
 from papwc.identify.fit import DEVIATIONS, NOT_TRIED, Identification
 from papwc.identify.log_file import Log
-from papwc.output import make_folder, remove_file, save_figure, write_rows, write_text
-from papwc.runner import INCOMPLETE
+from papwc.output_files import make_folder, remove_file, save_figure, write_rows, write_text
+from papwc.results.folder import INCOMPLETE
 
 __all__ = [
     "FIGURES",

@@ -82,8 +82,8 @@ def _sha256(path: Path) -> str:
 
 
 #: Modules whose code computes a run in a worker (their digest keys the journal).
-_RESULT_CODE = ("model", "controllers", "master", "runner.py", "scenario.py",
-                "battery/worker.py", "battery/plan.py")
+_RESULT_CODE = ("model", "controllers", "master", "scenario_run.py", "scenario.py",
+                "results/summary.py", "results/pulses.py", "battery/worker.py", "battery/plan.py")
 
 
 def code_digest() -> str:

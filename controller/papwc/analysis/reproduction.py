@@ -10,11 +10,11 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from papwc.analysis import claims, paper, plots  # noqa: E402
+from papwc.analysis import claims, paper  # noqa: E402
 from papwc.errors import ScenarioError  # noqa: E402
-from papwc.master import RunResult, summarize  # noqa: E402
+from papwc.master import RunResult  # noqa: E402
 from papwc.model.pulse import b_coulomb, pulse_displacement, pulse_width  # noqa: E402
-from papwc.output import (  # noqa: E402
+from papwc.output_files import (  # noqa: E402
     lock_folder,
     make_folder,
     remove_file,
@@ -23,14 +23,11 @@ from papwc.output import (  # noqa: E402
     write_text,
 )
 from papwc.resources import scenario_file  # noqa: E402
-from papwc.runner import (  # noqa: E402
-    INCOMPLETE,
-    ResultsFolder,
-    ensure_plant_fmu,
-    run_into_folder,
-    run_scenario,
-)
+from papwc.results import plots  # noqa: E402
+from papwc.results.folder import INCOMPLETE, ResultsFolder, run_into_folder  # noqa: E402
+from papwc.results.summary import summarize  # noqa: E402
 from papwc.scenario import load_scenario  # noqa: E402
+from papwc.scenario_run import ensure_plant_fmu, run_scenario  # noqa: E402
 
 #: The paper's scenario (a shipped file).
 DEFAULT_SCENARIO = "paper.toml"
@@ -146,7 +143,7 @@ def reproduce(out: Path, scenario_path: str | None = None, fmu: str | None = Non
 def _reproduce(out: Path, path: Path, scenario, extra_scenarios: list, fmu: Path,
                readings: bool, workers: int | None) -> int:
     """:func:`reproduce` once its inputs are checked and its folder locked."""
-    # Results go to disk as they come: runs/ per controller (see papwc.runner), the
+    # Results go to disk as they come: runs/ per controller (see papwc.scenario_run), the
     # figures and tables at the end; INCOMPLETE marks the folder until then.
     for name in OUTPUTS:
         remove_file(out / name)

@@ -1,0 +1,132 @@
+"""Run a scenario's controllers against the plant (what ``papwc run`` computes).
+
+:func:`run_scenario` runs every ``[[controller]]`` of a scenario on the plant it names
+(FrictionPlant.fmu or the in-process physics), between two communication steps honouring a
+deferred Ctrl-C and the run's time limit (:mod:`papwc.interrupts`); what it returns is
+written by :mod:`papwc.results.folder`.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+from papwc.errors import FmuError
+from papwc.interrupts import _CLOCK_EVERY, _INTERRUPT, RunTimeout, deferred_interrupt, interruption
+from papwc.master import FmuSlave, PhysicsSlave, RunResult, Slave, run_controller
+from papwc.output_files import refuse_link
+from papwc.scenario import Scenario
+
+
+def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> Path:
+    """The plant FMU to use: ``fmu`` if given, else one built from the current sources.
+
+    Without ``fmu``: the checkout's build/FrictionPlant.fmu when it is current,
+    else ``out/fmu/FrictionPlant.fmu`` (built there if missing or stale).
+    """
+    if fmu is not None:
+        path = Path(fmu)
+        if not path.is_file():
+            what = "is not a file" if path.exists() else "does not exist"
+            raise FmuError(f"plant FMU {str(path)!r} {what}")
+        from papwc.master.fmu import check_fmu
+
+        check_fmu(path, where=f"plant FMU {str(path)!r}")
+        return path
+    from papwc.fmubuild.fmus import current_fmu
+
+    refuse_link(Path(out) / "fmu")  # a folder the command fills is not followed
+    return current_fmu("FrictionPlant", Path(out) / "fmu")
+
+
+
+def _guard_steps(slave, deadline: float | None, limit: float | None):
+    """Make ``slave.do_step`` raise after a deferred Ctrl-C, and past ``deadline``.
+
+    Raises KeyboardInterrupt (Ctrl-C, checked every step) or :class:`RunTimeout`
+    (``time.monotonic() > deadline``, checked every ``_CLOCK_EVERY`` steps),
+    always between two steps.
+    """
+    do_step = slave.do_step
+    count = [0]
+    interrupt = _INTERRUPT
+
+    def checked_step(t: float, h: float) -> None:
+        do_step(t, h)
+        if interrupt["requested"]:
+            raise interruption()
+        if deadline is not None:
+            count[0] += 1
+            if count[0] % _CLOCK_EVERY == 0 and time.monotonic() > deadline:
+                raise RunTimeout(f"timed out: the run took longer than {limit:g} s "
+                                 f"(stopped at t = {t + h!r} s)")
+
+    slave.do_step = checked_step
+    return slave
+
+
+def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
+               unzip_dir: str | os.PathLike | None = None) -> Slave:
+    """A plant with the scenario's parameters: ``"fmu"`` (an FMU file) or ``"physics"``.
+
+    ``unzip_dir`` is an extracted copy of the FMU to use (a battery worker
+    extracts it once).
+    """
+    if plant != "physics" and unzip_dir is not None:
+        idle = _IDLE_PLANTS.pop((str(fmu), str(unzip_dir)), None)
+        if idle is not None:  # fmi2Reset at its initialization: as good as a new instance
+            idle.log.clear()
+            idle.replace_start_values(dict(scenario.plant))
+            return idle
+    slave = PhysicsSlave() if plant == "physics" else FmuSlave(fmu, unzip_dir=unzip_dir)
+    slave.set_start_values(dict(scenario.plant))
+    return slave
+
+
+#: Plant instances of this process not in use, by (FMU, extracted copy): a battery worker
+#: (which passes its extracted copy) takes the one of the run before instead of loading the
+#: FMU again, where the FMU can be reset (:attr:`papwc.master.FmuSlave.reusable`).
+_IDLE_PLANTS: dict[tuple[str, str], Slave] = {}
+
+
+def release_plant(slave: Slave, fmu: str | os.PathLike | None,
+                  unzip_dir: str | os.PathLike | None) -> None:
+    """Done with a plant of :func:`make_plant`: keep it for the next run, or close it."""
+    key = (str(fmu), str(unzip_dir))
+    if (unzip_dir is not None and isinstance(slave, FmuSlave) and slave.reusable
+            and key not in _IDLE_PLANTS):
+        slave.__dict__.pop("do_step", None)  # the guard of _guard_steps
+        _IDLE_PLANTS[key] = slave
+        return
+    slave.close()
+
+
+def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
+                 progress: Callable[[RunResult], None] | None = None,
+                 unzip_dir: str | os.PathLike | None = None,
+                 timeout: float | None = None) -> list[RunResult]:
+    """Run every controller of the scenario (each with a fresh plant instance).
+
+    ``fmu`` is the plant FMU's path when ``plant`` is ``"fmu"`` (and
+    ``unzip_dir`` an extracted copy of it, if there is one); ``progress`` is
+    called with each controller's result as it finishes. With ``timeout`` (s),
+    :class:`RunTimeout` is raised once the whole run has taken longer. Ctrl-C
+    raises KeyboardInterrupt between two steps (:func:`deferred_interrupt`).
+    """
+    results = []
+    deadline = None if timeout is None else time.monotonic() + timeout
+    with deferred_interrupt():
+        for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
+            slave = make_plant(scenario, plant, fmu, unzip_dir)
+            _guard_steps(slave, deadline, timeout)
+            try:
+                results.append(run_controller(slave, settings, scenario.maneuver, label))
+            finally:
+                release_plant(slave, fmu, unzip_dir)
+            if progress is not None:
+                progress(results[-1])
+    return results
+
+

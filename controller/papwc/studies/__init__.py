@@ -1,0 +1,8 @@
+"""Studies behind the README's open bounds, each runnable as ``python -m papwc.studies.NAME``.
+
+- :mod:`.ringing`: what pulses do to a flexible drive;
+- :mod:`.drive_state`: planning pulses from a model of the flexible drive, and how exact it must be;
+- :mod:`.scatter`: how far the same pulse moves a table whose breakaway is redrawn at every stop;
+- :mod:`.ring_scan`: whether the pulse controllers ever see ringing on rigid tables;
+- :mod:`.counts`: the command line these share.
+"""
