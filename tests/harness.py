@@ -27,6 +27,7 @@ from typing import Any, NamedTuple
 
 from papwc.controllers import Controller
 from papwc.master import Execution, FixedStepAlgorithm, SignalSlave, Slave
+from papwc.model.controller_settings import fmu_parameters
 from papwc.model.stickslip import simulate
 
 #: The plant of the paper's Table 1 (SI units), and as a scenario file's table.
@@ -309,9 +310,9 @@ def open_loop(
 
 
 def settings_start_values(settings, T: float) -> dict[str, Any]:
-    """PulseController.fmu start values of ``settings`` (None -> -1.0) and period ``T`` (s)."""
-    values = {name: (-1.0 if value is None else value)
-              for name, value in settings.to_mapping(with_none=True).items()}
+    """PulseController.fmu start values of ``settings`` (None and inf by their switches, see
+    :func:`papwc.model.controller_settings.fmu_parameters`) and period ``T`` (s)."""
+    values = fmu_parameters(settings.to_mapping(with_none=True))
     values["T"] = T
     return values
 

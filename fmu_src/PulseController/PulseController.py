@@ -31,6 +31,7 @@ from papwc_pulse_controller.model.controller_settings import (
     PULSE_CONTROLLER_VARIABLES,
     kind_from_code,
 )
+from papwc_pulse_controller.model.variables import switched_values
 from pythonfmu import DefaultExperiment
 
 _isfinite = math.isfinite
@@ -107,10 +108,10 @@ class PulseController(CheckedSlave):
         return kind_from_code(self.kind, self.kind_code, self._kind_set)
 
     def _settings(self) -> ControllerSettings:
-        values = {name: value for name, value in self.parameter_values().items()
-                  if name not in ("T", "kind_code", "x_ref_offset")}
-        values["kind"] = self._kind()[0]
-        return ControllerSettings.from_mapping(values)
+        values = self.parameter_values()
+        settings = {v.name: values[v.name] for v in CONTROLLER_SETTINGS}
+        settings["kind"] = self._kind()[0]
+        return ControllerSettings.from_mapping(settings)
 
     def _outputs(self) -> dict[str, Any]:
         """The controller's outputs; before it exists, those of a controller made from the
@@ -180,10 +181,8 @@ class PulseController(CheckedSlave):
                 isinstance(k, str) and _numbers(v) for k, v in values.items()):
             raise ValueError("the controller state does not fit: field _controller is not a "
                              "mapping of names to numbers or lists of numbers")
-        settings = {v.name: fields[v.name] for v in CONTROLLER_SETTINGS}
-        for v in CONTROLLER_SETTINGS:
-            if v.optional and settings[v.name] == -1.0:
-                settings[v.name] = None
+        params = switched_values(PULSE_CONTROLLER_VARIABLES, fields)
+        settings = {v.name: params[v.name] for v in CONTROLLER_SETTINGS}
         try:
             controller = make_controller(ControllerSettings.from_mapping(settings), fields["T"])
             controller.set_state(values)

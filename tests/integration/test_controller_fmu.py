@@ -114,8 +114,10 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
     assert not cs.canHandleVariableCommunicationStepSize
     variables = {v.name: v for v in md.modelVariables}
     settings = set(ControllerSettings.field_names())
+    switches = {"f_p_min_computed", "k_p_computed", "k_d_computed", "k_i_computed",
+                "a_max_computed", "t_p_max_unbounded"}
     assert {n for n, v in variables.items() if v.causality == "parameter"} == settings | {
-        "T", "kind_code", "x_ref_offset"}
+        "T", "kind_code", "x_ref_offset"} | switches
     assert {n for n, v in variables.items() if v.causality == "input"} == {
         "x_meas", "x_ref", "maneuver", "x_d_meas"}
     outputs = {n for n, v in variables.items() if v.causality == "output"}
@@ -131,12 +133,20 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
             assert var.unit == table[name].unit, name
     assert {u.name for u in md.unitDefinitions} >= {"m", "N", "s", "m/s2", "N/m", "s4"}
     assert variables["kind"].type == "String" and variables["kind"].start == "papwc"
-    assert float(variables["t_p_max"].start) == math.inf
+    # inf (no bound) is selected by t_p_max_unbounded; the Real starts at its max
+    assert variables["t_p_max_unbounded"].start == "true"
+    assert float(variables["t_p_max"].start) == float(variables["t_p_max"].max) == 1e6
     assert variables["u"].initial == "exact" and float(variables["u"].start) == 0.0
     assert variables["mode"].start == str(Mode.SETTLED)
     assert variables["maneuver"].type == "Integer" and variables["maneuver"].start == "0"
-    for name in ("f_p_min", "k_p", "k_d"):  # optional: -1 selects the default
-        assert float(variables[name].start) == -1.0
+    # optional: <name>_computed = true selects the computed default; the Real starts at that
+    # default at the other settings' defaults, inside its range
+    for name, start in (("f_p_min", 80.0), ("k_p", 15000.0), ("k_d", 2100.0)):
+        assert variables[f"{name}_computed"].type == "Boolean"
+        assert variables[f"{name}_computed"].start == "true"
+        assert float(variables[name].start) == start
+        assert float(variables[name].min) <= start <= float(variables[name].max)
+        assert float(variables[name].min) >= 0.0
     with zipfile.ZipFile(pulse_controller_fmu) as archive:
         names = archive.namelist()
     assert "resources/papwc_pulse_controller/controllers/base.py" in names
@@ -308,14 +318,15 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
         ("K_c", 2.5, "parameter K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"),
         ("kind", "bogus", "parameter kind = 'bogus': must be one of 'exact', 'papwc', 'pid', "
                                  "'pwc'"),
-        ("k_p", -5.0, "parameter k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m; -1 selects "
-                      "the default"),
+        ("k_p", -5.0, "parameter k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m; "
+                      "k_p_computed = true selects the default"),
         ("T", 0.0, "parameter T = 0.0 s: must satisfy 1e-09 <= T <= 1000 s"),
         ("rest_samples", 0, "parameter rest_samples = 0: must be a whole number 1 <= "
                             "rest_samples <= 1000000"),
         ("f_c_est", 300.0, "parameter f_c_est = 300.0 N: must satisfy 0 < f_c_est < f_p_max "
                            "= 300.0 N"),
-        ("t_p_max", -math.inf, "parameter t_p_max = -inf s: must be a finite number or inf"),
+        ("t_p_max", -math.inf, "parameter t_p_max = -inf s: must be a finite number or inf; "
+                               "t_p_max_unbounded = true selects no bound"),
         ("history", 0, "parameter history = 0: must be a whole number 1 <= history <= 1000"),
         ("max_pulses", -1, "parameter max_pulses = -1: must be a whole number 1 <= max_pulses "
                            "<= 1000000"),
@@ -325,7 +336,8 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
 )
 def test_invalid_settings_are_refused(controller: FmuInstance, name: str, value,
                                       expected: str) -> None:
-    controller.init(**{name: value})  # fmi2OK: the refusal is logged
+    read = {"k_p": {"k_p_computed": False}, "t_p_max": {"t_p_max_unbounded": False}}
+    controller.init(**{name: value}, **read.get(name, {}))  # fmi2OK: the refusal is logged
     errors = controller.logged(FMI2_ERROR)
     assert len(errors) == 1 and expected in errors[0], controller.messages
     assert "initialization refused" in errors[0]
@@ -336,6 +348,39 @@ def test_invalid_settings_are_refused(controller: FmuInstance, name: str, value,
     assert info.value.status == FMI2_DISCARD
     assert expected in controller.messages[-1].text
     assert controller.get("u") == 0.0
+
+
+def test_a_switch_decides_whether_the_real_is_read(pulse_controller_unzipped: Path) -> None:
+    """k_p_computed = true (the start): k_p is computed and a k_p set away from its start is
+    refused, not ignored; false: k_p is read. The same coarse force shows which gain acts."""
+    forces = {}
+    for label, start in (("computed", {}), ("start value", {"k_p": 15000.0}),
+                         ("given", {"k_p": 20000.0, "k_p_computed": False}),
+                         ("given at the computed value", {"k_p": 15000.0,
+                                                          "k_p_computed": False})):
+        c = FmuInstance(pulse_controller_unzipped, "controller")
+        try:
+            c.init(**start, x_ref=0.03, m_est=150.0, f_p_max=1000.0)
+            assert c.logged(FMI2_ERROR) == [], (label, c.messages)
+            forces[label] = sample(c, 0.0, 0.0)
+        finally:
+            c.close()
+    # e = 0.03 m beyond e_band: the coarse force k_p*e + f_c_est (v = 0), below f_p_max
+    assert forces["computed"] == forces["start value"] == forces[
+        "given at the computed value"] == pytest.approx(15000.0 * 0.03 + 80.0, rel=1e-12)
+    assert forces["given"] == pytest.approx(20000.0 * 0.03 + 80.0, rel=1e-12)
+    c = FmuInstance(pulse_controller_unzipped, "controller")
+    try:
+        c.init(k_p=20000.0)
+        (error,) = c.logged(FMI2_ERROR)
+        assert ("parameter k_p = 20000.0 N/m is not read while k_p_computed = true (k_p is "
+                "computed): set k_p_computed = false to use it, or leave k_p at its start value "
+                "15000.0; initialization refused") in error
+        with pytest.raises(FMICallException) as info:
+            sample(c, 0.0, 0.0)
+        assert info.value.status == FMI2_DISCARD
+    finally:
+        c.close()
 
 
 # -- state ----------------------------------------------------------------------------------------

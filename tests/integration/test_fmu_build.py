@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import errno
 import hashlib
+import math
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -27,7 +28,7 @@ from papwc.fmubuild.model_description import read_model_description as read_md_x
 from papwc.fmubuild.pythonfmu_build import FmuSource, build_pythonfmu
 from papwc.model.plant import PLANT_VARIABLES
 from papwc.model.units import UNIT_DEFINITIONS
-from papwc.model.variables import FMU_DEFAULT_SENTINEL, Variable
+from papwc.model.variables import Variable
 
 PACKAGE_DIR = Path(papwc.__file__).resolve().parent
 FMU_NAMES = [r.name for r in FMUS]
@@ -149,9 +150,12 @@ def test_every_variable_has_the_metadata_of_its_table_entry(
     else:
         assert typed.get("unit") is None
     ranged = var.causality == "parameter" and var.type in ("Real", "Integer")
-    # an optional setting's min is the value that selects its computed default
-    low = FMU_DEFAULT_SENTINEL if var.optional and var.min is not None else var.min
-    high = None if var.inf_ok else var.max  # an inf start would be above any max
+    # an excluded bound is written as the next double inside it (the FMU accepts it)
+    low, high = var.min, var.max
+    if var.type == "Real" and var.min_open and low is not None:
+        low = math.nextafter(low, math.inf)
+    if var.type == "Real" and var.max_open and high is not None:
+        high = math.nextafter(high, -math.inf)
     for bound, value in (("min", low), ("max", high)):
         if ranged and value is not None:
             cast = float if var.type == "Real" else int

@@ -18,7 +18,6 @@ from fmpy.fmi2 import FMU2Slave
 from papwc.fmubuild.model_description import read_model_description as read_md_xml
 from papwc.model.controller_settings import KIND_CODES, PULSE_CONTROLLER_VARIABLES
 from papwc.model.plant import PLANT_OUTPUTS, PLANT_PARAMETERS
-from papwc.model.variables import FMU_DEFAULT_SENTINEL
 
 FMPY = [sys.executable, "-m", "fmpy.cli"]
 
@@ -46,12 +45,13 @@ def test_every_bounded_parameter_declares_its_range(fmu_dir: Path, name: str, ta
         if var.causality != "parameter" or var.type not in ("Real", "Integer"):
             continue
         typed = declared[var.name]
-        if var.min is not None:
-            low = min(var.min, FMU_DEFAULT_SENTINEL) if var.optional else var.min
+        if var.min is not None:  # an excluded bound: the next double inside it
+            low = math.nextafter(var.min, math.inf) if var.min_open else var.min
             assert float(typed.get("min")) == low, var.name
             checked += 1
-        if var.max is not None and not var.inf_ok:  # an inf start would be above any max
-            assert float(typed.get("max")) == var.max, var.name
+        if var.max is not None:
+            high = math.nextafter(var.max, -math.inf) if var.max_open else var.max
+            assert float(typed.get("max")) == high, var.name
         if var.nominal is not None:
             assert float(typed.get("nominal")) == var.nominal, var.name
     assert checked >= 5

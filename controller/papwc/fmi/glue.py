@@ -61,7 +61,13 @@ from pythonfmu import (
 )
 from pythonfmu.enums import Fmi2Status
 
-from ..model.variables import FMU_DEFAULT_SENTINEL, Constraint, Variable, problems
+from ..model.variables import (
+    Constraint,
+    Variable,
+    problems,
+    switch_conflicts,
+    switched_values,
+)
 
 __all__ = ["CheckedSlave"]
 
@@ -211,27 +217,29 @@ class CheckedSlave(Fmi2Slave):
             ints[vr].setter(value)
 
     # -- parameters --------------------------------------------------------------------------
+    def _parameters(self) -> list[Variable]:
+        return [v for v in self.VARIABLES if v.causality == "parameter"]
+
     def parameter_values(self) -> dict[str, Any]:
-        """The parameters as the model layer reads them (``-1`` of an optional one -> None)."""
-        out = {}
-        for var in self.VARIABLES:
-            if var.causality == "parameter":
-                value = getattr(self, var.name)
-                if var.optional and value == FMU_DEFAULT_SENTINEL:
-                    value = None
-                out[var.name] = value
-        return out
+        """The parameters as the model layer reads them: a Real whose switch is true takes
+        the value the switch selects (None: computed; inf), the switches left out."""
+        params = self._parameters()
+        return switched_values(params, {v.name: getattr(self, v.name) for v in params})
 
     def check(self) -> list[str]:
         """One message per invalid parameter (override to add checks of a model's own)."""
-        optional = {v.name for v in self.VARIABLES if v.optional}
+        params = self._parameters()
+        switches = {v.name: f"{v.switch} = true selects "
+                    + ("the default" if v.optional else "no bound") for v in params if v.switch}
+        raw = {v.name: getattr(self, v.name) for v in params}
+        found = switch_conflicts(params, raw)
+        conflicted = {name for name, _ in found}
+        found += [(name, message) for name, message in problems(
+            params, self.parameter_values(), self.CONSTRAINTS) if name not in conflicted]
         return [
-            f"parameter {message}" + ("; -1 selects the default" if name in optional else "")
-            for name, message in problems(
-                [v for v in self.VARIABLES if v.causality == "parameter"],
-                self.parameter_values(),
-                self.CONSTRAINTS,
-            )
+            f"parameter {message}" + (f"; {switches[name]}"
+                                      if name in switches and name not in conflicted else "")
+            for name, message in found
         ]
 
     # -- to implement ------------------------------------------------------------------------
@@ -375,10 +383,10 @@ class CheckedSlave(Fmi2Slave):
                 and all(isinstance(p, str) for p in fields["_problems"])):
             raise ValueError("field _problems is not a list of strings")
         if fields["_ready"]:
-            params = [v for v in self.VARIABLES if v.causality == "parameter"]
-            values = {v.name: (None if v.optional and fields[v.name] == FMU_DEFAULT_SENTINEL
-                               else fields[v.name]) for v in params}
-            found = problems(params, values, self.CONSTRAINTS)
+            params = self._parameters()
+            values = {v.name: fields[v.name] for v in params}
+            found = switch_conflicts(params, values) or problems(
+                params, switched_values(params, values), self.CONSTRAINTS)
             if found:
                 raise ValueError(f"its parameters are invalid: {found[0][1]}")
         return self.decode_state(dict(fields))

@@ -21,7 +21,7 @@ from papwc.controllers import CONTROLLER_KINDS
 from papwc.errors import BuildError
 from papwc.fmubuild.fmus import FMUS
 from papwc.fmubuild.model_description import xml_number
-from papwc.model.variables import FMU_DEFAULT_SENTINEL, Variable
+from papwc.model.variables import Variable
 from papwc.resources import checkout_root
 
 __all__ = ["readme_tables", "sync_readmes", "variable_table", "with_table"]
@@ -30,8 +30,8 @@ __all__ = ["readme_tables", "sync_readmes", "variable_table", "with_table"]
 def _start(var: Variable) -> str:
     if var.causality == "output" and var.initial == "calculated":
         return "calculated"
-    if var.optional and var.default is None:
-        return f"{xml_number(FMU_DEFAULT_SENTINEL)} (its default)"
+    if var.switch:
+        return f"{xml_number(var.fmi_start)} (not read while `{var.switch}`)"
     return xml_number(var.fmi_start)
 
 
@@ -43,8 +43,9 @@ def variable_table(variables: Sequence[Variable]) -> str:
         allowed = var.allowed_text() if var.causality == "parameter" else ""
         if var.name == "kind" and var.type == "String":
             allowed = ", ".join(repr(k) for k in sorted(CONTROLLER_KINDS))
-        if var.optional:
-            allowed += f"; {xml_number(FMU_DEFAULT_SENTINEL)} selects the default"
+        if var.switch:
+            allowed += (f"; `{var.switch}` = true selects "
+                        + ("the default" if var.optional else "no bound"))
         kinds = f" (kinds: {', '.join(var.kinds)})" if var.kinds else ""
         unit = var.unit if var.unit not in ("", "1") else "–"
         lines.append(f"| `{var.name}` | {var.causality} | {var.type} | {unit} | {_start(var)} "

@@ -6,8 +6,10 @@ every other attribute comes from the model layer's metadata
 the variable tables say:
 
 - ``description``, ``unit`` (with ``<UnitDefinitions>``), ``min``, ``max``,
-  ``nominal`` and an exact ``start`` (``repr``, ``INF``) for every variable (an
-  optional setting's ``min`` is -1, the value that selects its computed default);
+  ``nominal`` and an exact ``start`` (``repr``, ``INF``) for every variable; every
+  Real or Integer parameter has ``min`` and ``max``, an excluded bound written as
+  the next double inside it, so that a host's range check accepts only values the
+  FMU accepts;
 - ``initial="calculated"`` outputs without a start value, listed under
   ``<InitialUnknowns>``;
 - ``<Outputs>`` whose ``dependencies=""`` says an output does not depend on the
@@ -34,7 +36,7 @@ from pathlib import Path
 from papwc import __version__
 from papwc.errors import BuildError, OutputError
 from papwc.model.units import UNIT_DEFINITIONS
-from papwc.model.variables import FMU_DEFAULT_SENTINEL, Variable
+from papwc.model.variables import Variable
 
 __all__ = [
     "MODEL_DESCRIPTION",
@@ -226,15 +228,11 @@ def complete_model_description(
             typed.set("unit", var.unit)
             units.add(var.unit)
         if var.type in ("Real", "Integer") and var.causality == "parameter":
-            low = var.min
-            if var.optional and low is not None:
-                # -1 selects the computed default: the lowest value the FMU accepts.
-                low = min(low, FMU_DEFAULT_SENTINEL)
+            low, high = var.fmi_min, var.fmi_max
             if low is not None:
                 typed.set("min", xml_number(float(low) if var.type == "Real" else int(low)))
-            if var.max is not None and not var.inf_ok:
-                typed.set("max", xml_number(float(var.max) if var.type == "Real"
-                                            else int(var.max)))
+            if high is not None:
+                typed.set("max", xml_number(float(high) if var.type == "Real" else int(high)))
         if var.type == "Real" and var.nominal is not None:
             typed.set("nominal", xml_number(float(var.nominal)))
     _write_units(root, units, where)

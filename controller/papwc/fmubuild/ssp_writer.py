@@ -45,13 +45,18 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
-from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, settings_for_kind
+from papwc.controllers.settings import ControllerSettings, settings_for_kind
 from papwc.errors import BuildError, OutputError, PapwcError
 from papwc.fmubuild.model_description import read_model_description
-from papwc.model.controller_settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS, KIND_CODES
+from papwc.model.controller_settings import (
+    CONTROLLER_INPUTS,
+    CONTROLLER_OUTPUTS,
+    CONTROLLER_SETTINGS,
+    KIND_CODES,
+    fmu_parameters,
+)
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_INPUTS, PLANT_OUTPUTS, SCENARIO_PLANT_FIELDS
 from papwc.model.units import UNIT_DEFINITIONS
-from papwc.model.variables import FMU_DEFAULT_SENTINEL
 from papwc.scenario import Scenario, load_scenario
 
 __all__ = [
@@ -152,12 +157,12 @@ def closed_loop_parameters(
     -------
     dict
         ``{"plant": {...}, "controller": {...}}``: variable name -> value, in SI
-        units, for the settings the controller's kind reads. ``None`` settings are
-        given as :data:`papwc.model.variables.FMU_DEFAULT_SENTINEL`; an
-        infinite ``t_p_max`` is left out (the controller FMU's start value is
-        infinity, and an SSP reader need not parse ``INF``). The kind is given
-        as the Integer ``kind_code`` (fmpy and OMSimulator cannot set Strings),
-        the reference as the parameter ``x_ref_offset``.
+        units, for the settings the controller's kind reads
+        (:func:`papwc.model.controller_settings.fmu_parameters`: a ``None`` setting
+        sets its Boolean ``<name>_computed`` true, an infinite ``t_p_max`` sets
+        ``t_p_max_unbounded`` true, and the Real is then left out). The kind is
+        given as the Integer ``kind_code`` (fmpy and OMSimulator cannot set
+        Strings), the reference as the parameter ``x_ref_offset``.
     """
     if not 0 <= controller_index < len(scenario.controllers):
         raise BuildError(
@@ -171,21 +176,20 @@ def closed_loop_parameters(
     }
     plant["x0"] = 0.0
     plant["v0"] = 0.0
+    read = set(settings_for_kind(settings.kind))
+    types = {v.name: v.type for v in CONTROLLER_SETTINGS}
     controller: dict[str, float | int | str] = {}
-    for name in settings_for_kind(settings.kind):
-        var = SETTINGS_BY_NAME[name]
-        value = settings.get(name)
-        if value is None:
-            value = FMU_DEFAULT_SENTINEL
+    given = fmu_parameters({name: settings.get(name) for name in read})
+    for name, value in given.items():
         if name == "kind":
             controller["kind_code"] = KIND_CODES.index(value) + 1
-        elif var.type == "Integer":
-            controller[name] = int(value)
-        elif var.type == "Boolean":
+        elif types.get(name, "Boolean") == "Boolean":
             controller[name] = bool(value)
-        elif var.type == "String":
+        elif types[name] == "Integer":
+            controller[name] = int(value)
+        elif types[name] == "String":
             controller[name] = str(value)
-        elif not (var.inf_ok and math.isinf(value)):
+        else:
             controller[name] = float(value)
     controller["T"] = float(scenario.maneuver.T)
     controller["x_ref_offset"] = float(scenario.maneuver.x_ref)

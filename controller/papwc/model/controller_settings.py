@@ -13,14 +13,14 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from .variables import FMU_DEFAULT_SENTINEL, Constraint, Variable, problems
+from .variables import Constraint, Variable, problems, switch_variables
 
 __all__ = [
     "CONTROLLER_CONSTRAINTS",
     "CONTROLLER_INPUTS",
     "CONTROLLER_OUTPUTS",
     "CONTROLLER_SETTINGS",
-    "FMU_DEFAULT_SENTINEL",
+    "CONTROLLER_SWITCHES",
     "KIND_CODE",
     "KIND_CODES",
     "MODE_PERIODS",
@@ -29,6 +29,7 @@ __all__ = [
     "PULSE_CONTROLLER_VARIABLES",
     "REFERENCE_OFFSET",
     "SAMPLE_PERIOD",
+    "fmu_parameters",
     "kind_from_code",
     "settings_problems",
 ]
@@ -49,7 +50,7 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "limit of the coarse feedback and of the PID", "N", 300.0,
              min=0.0, min_open=True, max=1e9, nominal=100.0),
     Variable("t_p_max", "Largest pulse width; inf for no bound", "s", float("inf"), min=0.0,
-             min_open=True, max=1e6, inf_ok=True, note="(inf for no bound)"),
+             min_open=True, max=1e6, inf_ok=True, note="(inf for no bound)", fmi_default=1e6),
     Variable("K_c", "Gain of Eq. (6)", "1", 1.0, min=0.0, max=2.0, min_open=True,
              max_open=True, note="(Eq. (6))"),
     Variable("tolerance", "Error band inside which the mass at rest counts as settled", "m",
@@ -59,7 +60,7 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("f_c_est", "Initial estimate of the Coulomb friction, < f_p_max", "N", 80.0,
              min=1e-6, max=1e9, nominal=100.0),
     Variable("f_p_min", "Initial floor of the pulse amplitude, <= f_p_max; default f_c_est",
-             "N", None, min=0.0, max=1e9, optional=True, nominal=100.0),
+             "N", None, min=0.0, max=1e9, optional=True, nominal=100.0, fmi_default=80.0),
     Variable("floor_raise", "Relative step by which the amplitude floor rises above an "
              "amplitude that did not move the mass", "1", 0.05, min=0.0, max=1.0,
              min_open=True),
@@ -96,10 +97,10 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              max=1e3),
     Variable("k_p", "Proportional gain of the coarse feedback (pid: of the PID); default "
              "m_est*(10 rad/s)**2 (pid: m_est*w**2, w = 0.1/T rad/s, at most 0.05*2*pi*f_mode)",
-             "N/m", None, min=0.0, min_open=True, max=1e15, optional=True),
+             "N/m", None, min=0.0, min_open=True, max=1e15, optional=True, fmi_default=15000.0),
     Variable("k_d", "Derivative gain of the coarse feedback (pid: of the PID); default "
              "2*0.7*(10 rad/s)*m_est (pid: 2*0.7*w*m_est)",
-             "N.s/m", None, min=0.0, max=1e15, optional=True),
+             "N.s/m", None, min=0.0, max=1e15, optional=True, fmi_default=2100.0),
     Variable("rest_samples", "Sample intervals over which the measured position must stay "
              "within the rest band to count as at rest (the dwell; with rest_auto, at least "
              "this)", "", 1, type="Integer", min=1, max=DWELL_MAX),
@@ -137,11 +138,11 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("k_i", "Integral gain of the PID; default 0.25*m_est*w**3 with w = 0.1/T rad/s, "
              "at most 0.05*2*pi*f_mode (k_p and k_d default to m_est*w**2 and 2*0.7*w*m_est "
              "for it: the coarse loop's gains, which are these at T = 0.01 s)", "N/(m.s)", None,
-             min=0.0, max=1e18, optional=True, kinds=("pid",)),
+             min=0.0, max=1e18, optional=True, kinds=("pid",), fmi_default=37500.0),
     Variable("a_max", "Largest acceleration of the PID's reference trajectory; default "
              "(f_p_max - f_c_est)/(2*m_est), half what the force limit leaves over the "
              "friction", "m/s2", None, min=0.0, min_open=True, max=1e6, optional=True,
-             kinds=("pid",)),
+             kinds=("pid",), fmi_default=(300.0 - 80.0) / (2.0 * 150.0)),
     Variable("v_max", "Largest speed of the PID's reference trajectory", "m/s", 0.05,
              min=0.0, min_open=True, max=1e3, kinds=("pid",)),
     Variable("hunt_max", "Reversals after which the PID, at rest nearer the target than the "
@@ -207,7 +208,8 @@ SAMPLE_PERIOD = Variable("T", "Sample period: every communication step must be T
 #: ``initial = "exact"`` or ``"approx"``: parameters, not inputs) and leaves ``x_ref`` at 0.
 REFERENCE_OFFSET = Variable(
     "x_ref_offset", "Constant added to the input x_ref: the reference is x_ref_offset + x_ref "
-    "(a fixed target for hosts that leave x_ref unconnected)", "m", 0.0, nominal=0.01,
+    "(a fixed target for hosts that leave x_ref unconnected)", "m", 0.0, min=-1e6, max=1e6,
+    nominal=0.01,
 )
 
 #: Controller kinds by number: ``KIND_CODES[n - 1]`` is the kind that ``kind_code = n``
@@ -315,11 +317,42 @@ CONTROLLER_OUTPUTS: tuple[Variable, ...] = (
 )
 
 
-#: Every variable of PulseController.fmu, in the order of its value references.
+#: Boolean parameters of PulseController.fmu, true by default: ``<name>_computed`` selects
+#: the computed default of an optional setting (``None`` in a scenario), ``t_p_max_unbounded``
+#: no bound on the pulse width (``inf``); the Real beside it is then not read. (A value the
+#: Real cannot hold, as -1 for "computed", would be one a host's range check cannot tell from
+#: a wrong value.)
+CONTROLLER_SWITCHES: tuple[Variable, ...] = switch_variables(CONTROLLER_SETTINGS)
+
+#: Every variable of PulseController.fmu, in the order of its value references (the
+#: switches last, so that the other variables keep their value references).
 PULSE_CONTROLLER_VARIABLES: tuple[Variable, ...] = (
     CONTROLLER_SETTINGS + (SAMPLE_PERIOD, KIND_CODE, REFERENCE_OFFSET) + CONTROLLER_INPUTS
-    + CONTROLLER_OUTPUTS
+    + CONTROLLER_OUTPUTS + CONTROLLER_SWITCHES
 )
+
+
+def fmu_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
+    """PulseController.fmu parameters for settings ``values`` (scenario-file names).
+
+    A setting at the default a Real cannot hold (``None``: computed; ``inf``: no
+    bound) sets its switch true and leaves the Real at its start value; any other
+    value of such a setting sets the Real and its switch false. Other settings are
+    passed as they are.
+    """
+    out: dict[str, Any] = {}
+    for var in CONTROLLER_SETTINGS:
+        if var.name not in values:
+            continue
+        value = values[var.name]
+        if not var.switch:
+            out[var.name] = value
+        elif value is None or value == var.switched_value:
+            out[var.switch] = True
+        else:
+            out[var.name] = value
+            out[var.switch] = False
+    return out
 
 
 def settings_problems(values: Mapping[str, Any]) -> list[tuple[str, str]]:

@@ -19,16 +19,15 @@ from dataclasses import dataclass
 from typing import Any
 
 __all__ = [
-    "FMU_DEFAULT_SENTINEL",
     "Constraint",
     "Variable",
     "by_name",
     "describe_value",
     "problems",
+    "switch_conflicts",
+    "switch_variables",
+    "switched_values",
 ]
-
-#: In an FMU, the value of an optional setting that selects its computed default.
-FMU_DEFAULT_SENTINEL = -1.0
 
 #: FMI 2.0 types a variable can have.
 TYPES = ("Real", "Integer", "Boolean", "String")
@@ -63,10 +62,15 @@ class Variable:
     nominal : float or None
         Nominal magnitude (model description), where it helps a tool scale.
     inf_ok : bool
-        ``+inf`` is allowed (e.g. no bound on the pulse width).
+        ``+inf`` is allowed (e.g. no bound on the pulse width); in an FMU the
+        Boolean :attr:`switch` ``<name>_unbounded`` selects it.
     optional : bool
-        ``None`` is allowed and selects a computed default; in an FMU the value
-        ``-1`` stands for it.
+        ``None`` is allowed and selects a computed default; in an FMU the
+        Boolean :attr:`switch` ``<name>_computed`` selects it.
+    fmi_default : float or None
+        Start value in an FMU of a Real whose default (``None`` or ``inf``) is
+        selected by its switch: a value in range that the switch leaves unread
+        (the computed default at the other settings' defaults, or ``max``).
     choices : tuple of str
         Allowed values of a String.
     note : str
@@ -100,6 +104,7 @@ class Variable:
     nominal: float | None = None
     inf_ok: bool = False
     optional: bool = False
+    fmi_default: float | None = None
     choices: tuple[str, ...] = ()
     note: str = ""
     kinds: tuple[str, ...] = ()
@@ -124,9 +129,42 @@ class Variable:
         return "continuous" if self.type == "Real" else "discrete"
 
     @property
+    def switch(self) -> str:
+        """Name of the FMU's Boolean that, when true, selects the default this Real cannot
+        hold (``<name>_computed`` of an optional setting, ``<name>_unbounded`` of one that
+        may be inf); empty for the others."""
+        if self.optional:
+            return f"{self.name}_computed"
+        if self.inf_ok:
+            return f"{self.name}_unbounded"
+        return ""
+
+    @property
+    def switched_value(self) -> Any:
+        """The value its :attr:`switch` selects: ``None`` (computed) or ``inf``."""
+        return None if self.optional else math.inf
+
+    @property
     def fmi_start(self) -> Any:
-        """Start value in an FMU: the default, or :data:`FMU_DEFAULT_SENTINEL` for ``None``."""
-        return FMU_DEFAULT_SENTINEL if self.default is None else self.default
+        """Start value in an FMU: the default, or :attr:`fmi_default` where a switch
+        selects the default (``None`` or ``inf``, values a Real in range cannot hold)."""
+        return self.fmi_default if self.switch else self.default
+
+    @property
+    def fmi_min(self) -> float | None:
+        """``min`` in an FMU's model description: the lowest value the FMU accepts (an
+        excluded bound moves to the next double, so a host's range check accepts only
+        values the FMU accepts)."""
+        if self.min is None or not self.min_open or self.type != "Real":
+            return self.min
+        return math.nextafter(float(self.min), math.inf)
+
+    @property
+    def fmi_max(self) -> float | None:
+        """``max`` in an FMU's model description: the highest value the FMU accepts."""
+        if self.max is None or not self.max_open or self.type != "Real":
+            return self.max
+        return math.nextafter(float(self.max), -math.inf)
 
     @property
     def attribute(self) -> str:
@@ -245,6 +283,66 @@ def _num(x: float) -> str:
     if float(short) == x:
         return short
     return str(x) if isinstance(x, int) else repr(float(x))
+
+
+def switch_variables(variables: Iterable[Variable]) -> tuple[Variable, ...]:
+    """The FMU's Boolean switches of ``variables`` (one per variable with a :attr:`switch`).
+
+    A switch is true by default: the Real is then not read, and the setting takes
+    its computed default (``<name>_computed``) or no bound (``<name>_unbounded``).
+    Every value a host's range check accepts for the Real is thus one the FMU
+    accepts; a sentinel outside the range (as -1 for "computed") would let a
+    host accept -0.5 too.
+    """
+    out = []
+    for var in variables:
+        if not var.switch:
+            continue
+        if var.optional:
+            what = f"{var.name} is computed (its default; {var.name} is not read)"
+        else:
+            what = f"{var.name} is inf, no bound ({var.name} is not read)"
+        out.append(Variable(var.switch, f"True: {what}; false: the parameter {var.name} is "
+                            "used", "", True, type="Boolean", kinds=var.kinds))
+    return tuple(out)
+
+
+def switched_values(variables: Iterable[Variable], values: Mapping[str, Any]) -> dict[str, Any]:
+    """``values`` of an FMU's parameters as the model layer reads them.
+
+    A variable whose switch is true takes the value the switch selects (``None``
+    or ``inf``); the switches themselves are left out. Names not in
+    ``variables`` are kept as they are.
+    """
+    variables = list(variables)
+    switches = {v.switch for v in variables if v.switch}
+    out = {name: value for name, value in values.items() if name not in switches}
+    for var in variables:
+        if var.switch and values.get(var.switch) and var.name in out:
+            out[var.name] = var.switched_value
+    return out
+
+
+def switch_conflicts(variables: Iterable[Variable],
+                     values: Mapping[str, Any]) -> list[tuple[str, str]]:
+    """``(name, message)`` for each Real set away from its start while its switch is true.
+
+    The Real is not read then, so a value set on it would be ignored: it is refused
+    instead, with what to do.
+    """
+    out = []
+    for var in variables:
+        if not var.switch or not values.get(var.switch) or var.name not in values:
+            continue
+        value = values[var.name]
+        if value == var.fmi_start or value == var.switched_value:
+            continue
+        what = "computed" if var.optional else "inf (no bound)"
+        out.append((var.name, f"{var.name} = {describe_value(value)}{var._value_unit(value)} "
+                    f"is not read while {var.switch} = true ({var.name} is {what}): set "
+                    f"{var.switch} = false to use it, or leave {var.name} at its start value "
+                    f"{describe_value(var.fmi_start)}"))
+    return out
 
 
 def by_name(variables: Iterable[Variable]) -> dict[str, Variable]:
