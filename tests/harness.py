@@ -18,7 +18,9 @@ root conftest, so pytest puts this folder on ``sys.path``).
 
 from __future__ import annotations
 
+import json
 import math
+import random
 from collections.abc import Callable, Mapping, Sequence
 from ctypes import byref
 from decimal import Decimal, localcontext
@@ -26,7 +28,15 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 from papwc.controllers import Controller
-from papwc.master import Execution, FixedStepAlgorithm, SignalSlave, Slave
+from papwc.master import (
+    Execution,
+    FixedStepAlgorithm,
+    Maneuver,
+    PhysicsSlave,
+    SignalSlave,
+    Slave,
+    run_controller,
+)
 from papwc.model.controller_settings import fmu_parameters
 from papwc.model.stickslip import simulate
 
@@ -34,37 +44,73 @@ from papwc.model.stickslip import simulate
 TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
 TABLE_1_TOML = "".join(["[plant]\n", *(f"{k} = {v!r}\n" for k, v in TABLE_1.items())])
 
+
+#: The deviations of a real machine of scenarios/realism.toml (one seed each), as plant
+#: parameters to add to :data:`TABLE_1`.
+DEVIATIONS = {
+    "stribeck": {"v_s": 1e-3},
+    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
+    "ripple": {"ripple": 0.1, "ripple_period": 1e-3},
+    "stiction": {"f_s_spread": 0.1, "seed": 3},
+    "lag": {"tau_u": 2e-3},
+    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
+    "noise": {"noise_std": 2e-7, "x_resolution": 1e-7, "seed": 2},
+}
+
+
+def table_1(**changes: Any) -> dict[str, Any]:
+    """The plant of Table 1 with ``changes`` (other values, deviations of a real machine)."""
+    return {**TABLE_1, **changes}
+
+
+def run_on_physics(plant: Mapping[str, Any], settings: Any, **maneuver: Any) -> Any:
+    """Run the controller of ``settings`` on the master's in-process plant with parameters
+    ``plant`` over a :class:`papwc.master.Maneuver` of fields ``maneuver``; the run must
+    end without error. Returns the :class:`papwc.master.RunResult`."""
+    slave = PhysicsSlave()
+    slave.set_start_values(plant)
+    result = run_controller(slave, settings, Maneuver(**maneuver))
+    assert not result.error, result.error
+    return result
+
+def toml_value(value: Any) -> str:
+    """A value as a scenario file writes it (TOML)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, float) and math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    return repr(value)
+
+
+def scenario_toml(name: str, *, plant: Mapping[str, Any] | None = None,
+                  maneuver: Mapping[str, Any] | None = None,
+                  controllers: Sequence[Mapping[str, Any]] = (), tail: str = "") -> str:
+    """The text of a scenario (or battery) file: ``name``, the ``[plant]`` and
+    ``[maneuver]`` tables (left out when None), one ``[[controller]]`` table per mapping
+    of ``controllers``, then ``tail`` as it is (a battery's ``[sweep]``, ``[monte_carlo]``)."""
+    lines = [f"name = {toml_value(name)}"]
+    for table, values in (("[plant]", plant), ("[maneuver]", maneuver)):
+        if values is not None:
+            lines += [table, *(f"{k} = {toml_value(v)}" for k, v in values.items())]
+    for controller in controllers:
+        lines += ["[[controller]]", *(f"{k} = {toml_value(v)}" for k, v in controller.items())]
+    return "\n".join(lines) + "\n" + tail
+
+
+#: The paper's PWC and PAPWC controllers of scenarios/paper.toml (t_p_max = 0.03 s).
+PWC_PAPER = {"kind": "pwc", "t_p_max": 0.03, "K_c": 0.5, "tolerance": 0.0}
+PAPWC_PAPER = {"kind": "papwc", "t_p_max": 0.03, "K_c": 0.8}
+
 #: A valid scenario: one PAPWC controller, one 0.5 s iteration.
-GOOD = """
-name = "t"
-[plant]
-m = 150.0
-[maneuver]
-x_ref = 0.01
-T = 0.01
-duration = 0.5
-iterations = 1
-[[controller]]
-kind = "papwc"
-"""
+GOOD = scenario_toml("t", plant={"m": 150.0},
+                     maneuver={"x_ref": 0.01, "T": 0.01, "duration": 0.5, "iterations": 1},
+                     controllers=[{"kind": "papwc"}])
 
 #: A short version of the paper's scenario (two iterations of 0.5 s).
-SHORT_PAPER = """
-name = "short"
-[maneuver]
-x_ref = 0.01
-duration = 0.5
-iterations = 2
-[[controller]]
-kind = "pwc"
-t_p_max = 0.03
-K_c = 0.5
-tolerance = 0.0
-[[controller]]
-kind = "papwc"
-t_p_max = 0.03
-K_c = 0.8
-"""
+SHORT_PAPER = scenario_toml("short", maneuver={"x_ref": 0.01, "duration": 0.5, "iterations": 2},
+                            controllers=[PWC_PAPER, PAPWC_PAPER])
 
 __all__ = [
     "FmuInstance",
@@ -72,10 +118,14 @@ __all__ = [
     "Recorder",
     "ScriptedController",
     "open_loop",
+    "random_forces",
+    "run_on_physics",
+    "scenario_toml",
     "segment",
     "settings_start_values",
     "step_pulse",
     "stop_time",
+    "table_1",
 ]
 
 #: fmi2Status codes, as the logger and FMICallException report them.
@@ -90,13 +140,28 @@ class Message(NamedTuple):
     text: str
 
 
+#: Messages of every :class:`FmuInstance` by its componentEnvironment: fmpy's logger proxy
+#: keeps one logger per process, so every instance shares :data:`_LOGGER`, which tells them
+#: apart by the environment they were instantiated with.
+_MESSAGES: dict[int, list[Message]] = {}
+
+
+def _log(env, instance, status, category, message) -> None:
+    _MESSAGES.setdefault(env or 0, []).append(
+        Message(status, (category or b"").decode(), (message or b"").decode()))
+
+
+_LOGGER = None
+
+
 class FmuInstance:
     """One FMU instance through fmpy's ``FMU2Slave``, its log messages kept.
 
     The raw instance is :attr:`fmu` (``getFMUstate``, ``doStep``, ...); :meth:`set`
     and :meth:`get` set and read variables of any type by name, :meth:`init` runs
-    the initialization with start values. As a :class:`papwc.master.Slave` it can
-    be added to an :class:`papwc.master.Execution` (start values from
+    the initialization with start values, :meth:`advance` steps from the
+    communication point :attr:`t`. As a :class:`papwc.master.Slave` it can be
+    added to an :class:`papwc.master.Execution` (start values from
     :meth:`set_start_values`; ``restart`` is not offered: use the raw state calls).
 
     Parameters
@@ -107,9 +172,12 @@ class FmuInstance:
         Instance name.
     logging : bool
         ``loggingOn`` of fmi2Instantiate.
+    guid : str, optional
+        The GUID passed to fmi2Instantiate (default: the model description's).
     """
 
-    def __init__(self, unzipdir: Path, name: str = "instance", logging: bool = True) -> None:
+    def __init__(self, unzipdir: Path, name: str = "instance", logging: bool = True,
+                 guid: str | None = None) -> None:
         from fmpy import read_model_description
         from fmpy.fmi1 import calloc, free
         from fmpy.fmi2 import (
@@ -121,33 +189,33 @@ class FmuInstance:
         )
         from fmpy.logging import addLoggerProxy
 
+        global _LOGGER
+        if _LOGGER is None:
+            _LOGGER = fmi2CallbackLoggerTYPE(_log)
         self.name = name
         self.md = read_model_description(str(unzipdir))
         self.vars = {v.name: v for v in self.md.modelVariables}
-        self.messages: list[Message] = []
+        env = len(_MESSAGES) + 1
+        self.messages: list[Message] = _MESSAGES.setdefault(env, [])
         self.values: list[Any] = []
         self.start: dict[str, Any] = {}
         self.watched: list[str] = []
         self.resume_state: Any = None
+        #: Communication point of the next :meth:`advance`, s.
+        self.t = 0.0
         self.callbacks = fmi2CallbackFunctions()
-        self.logger = fmi2CallbackLoggerTYPE(self.log)
-        self.callbacks.logger = self.logger
+        self.callbacks.componentEnvironment = env
+        self.callbacks.logger = _LOGGER
         self.callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self.callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         addLoggerProxy(byref(self.callbacks))
         self.fmu = FMU2Slave(
-            guid=self.md.guid,
+            guid=guid or self.md.guid,
             unzipDirectory=str(unzipdir),
             modelIdentifier=self.md.coSimulation.modelIdentifier,
             instanceName=name,
         )
         self.fmu.instantiate(callbacks=self.callbacks, loggingOn=logging)
-
-    def log(self, component, instance, status, category, message) -> None:
-        """The logger callback: keep the message."""
-        self.messages.append(
-            Message(status, (category or b"").decode(), (message or b"").decode())
-        )
 
     def logged(self, status: int) -> list[str]:
         """Texts of the messages logged with ``status``."""
@@ -185,11 +253,20 @@ class FmuInstance:
 
     def init(self, start_time: float = 0.0, **start: Any) -> None:
         """setupExperiment, enter initialization, set ``start``, exit initialization."""
+        self.t = start_time
         self.fmu.setupExperiment(startTime=start_time)
         self.fmu.enterInitializationMode()
         for name, value in start.items():
             self.set(name, value)
         self.fmu.exitInitializationMode()
+
+    def advance(self, h: float, **inputs: Any) -> None:
+        """Set ``inputs``, then fmi2DoStep from :attr:`t` over ``h`` (s); :attr:`t` moves on
+        by ``h`` when the step is done."""
+        for name, value in inputs.items():
+            self.set(name, value)
+        self.fmu.doStep(self.t, h)
+        self.t += h
 
     # -- the master's Slave interface ----------------------------------------------------------
     def variables(self) -> Mapping[str, str]:
@@ -236,8 +313,11 @@ class FmuInstance:
         self.fmu.doStep(t, h)
         self.refresh()
 
-    def close(self) -> None:
-        self.fmu.terminate()
+    def close(self, terminate: bool = True) -> None:
+        """fmi2Terminate (unless ``terminate`` is False: already done, or not allowed in the
+        instance's state) and fmi2FreeInstance."""
+        if terminate:
+            self.fmu.terminate()
         self.fmu.freeInstance()
 
 
@@ -340,6 +420,22 @@ class ScriptedController(Controller):
 
     def estimates(self) -> dict[str, float]:
         return {"b_hat": math.nan, "f_c_hat": math.nan}
+
+
+def random_forces(seed: int, n: int) -> list[float]:
+    """``n`` zero-order-hold forces (N) of the Table 1 plant, drawn from ``seed``: pulses
+    above f_s, rests, forces below breakaway."""
+    rng = random.Random(seed)
+    out: list[float] = []
+    while len(out) < n:
+        kind = rng.random()
+        if kind < 0.3:
+            out += [rng.choice((-1.0, 1.0)) * rng.uniform(140.0, 300.0)] * rng.randint(1, 4)
+        elif kind < 0.65:
+            out += [0.0] * rng.randint(1, 8)
+        else:
+            out += [rng.uniform(-130.0, 130.0)] * rng.randint(1, 5)
+    return out[:n]
 
 
 # -- independent references of the plant's motion ----------------------------------------------

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 import pytest
-from harness import TABLE_1_TOML
+from harness import PAPWC_PAPER, PWC_PAPER, TABLE_1, scenario_toml
 
 from papwc.battery import (
     BatteryError,
@@ -27,23 +27,10 @@ JOURNAL = "journal.jsonl"
 
 #: A small battery: 2 sweep points (the second makes f_s < f_c: an invalid plant)
 #: times 3 draws, 2 controllers, 2 short iterations.
-SMALL = 'name = "small"\n' + TABLE_1_TOML + """\
-[maneuver]
-x_ref = 0.01
-T = 0.01
-duration = 0.6
-iterations = 2
-[[controller]]
-kind = "pwc"
-t_p_max = 0.03
-K_c = 0.5
-tolerance = 0.0
-F_inv0 = 1e-5
-[[controller]]
-kind = "papwc"
-t_p_max = 0.03
-K_c = 0.8
-tolerance = 2e-5
+SMALL = scenario_toml(
+    "small", plant=TABLE_1, maneuver={"x_ref": 0.01, "T": 0.01, "duration": 0.6, "iterations": 2},
+    controllers=[{**PWC_PAPER, "F_inv0": 1e-5}, {**PAPWC_PAPER, "tolerance": 2e-5}],
+    tail="""\
 [sweep]
 "plant.f_s" = [130.0, 90.0]
 [monte_carlo]
@@ -51,26 +38,20 @@ n = 3
 seed = 7
 "plant.m" = { dist = "uniform", rel = 0.3 }
 "controller.f_c_est" = { dist = "uniform", low = 0.8, high = 1.2, of = "plant.f_c" }
-"""
+""")
 
-#: A battery whose runs are all valid, for kill and resume (n draws).
-RESUME = """\
-name = "resume"
-[maneuver]
-x_ref = 0.01
-duration = 0.5
-iterations = 2
-[[controller]]
-kind = "papwc"
-t_p_max = 0.03
-K_c = 0.8
+def resume_battery(n: int) -> str:
+    """A battery whose runs are all valid, for kill and resume (n draws)."""
+    return scenario_toml(
+        "resume", maneuver={"x_ref": 0.01, "duration": 0.5, "iterations": 2},
+        controllers=[PAPWC_PAPER], tail=f"""\
 [monte_carlo]
 n = {n}
 seed = 3
 "plant.m" = {{ dist = "uniform", rel = 0.3 }}
 "plant.f_c" = {{ dist = "normal", rel_std = 0.1 }}
 "plant.f_s" = {{ dist = "uniform", low = 1.0, high = 1.6, of = "plant.f_c" }}
-"""
+""")
 
 
 def write(tmp_path: Path, text: str, name: str = "battery.toml") -> Path:
@@ -130,7 +111,7 @@ def test_failing_runs_are_recorded_and_results_do_not_depend_on_workers(
 
 @pytest.mark.slow
 def test_an_fmu_that_fails_gives_error_runs_not_a_crash(tmp_path, trivial_fmu):
-    path = write(tmp_path, RESUME.format(n=2))
+    path = write(tmp_path, resume_battery(2))
     outcome = run_battery([load_battery(path)], tmp_path / "out", trivial_fmu, workers=1,
                           progress=False)
     assert outcome.runs == 2 and len(outcome.failed) == 2
@@ -140,7 +121,7 @@ def test_an_fmu_that_fails_gives_error_runs_not_a_crash(tmp_path, trivial_fmu):
 
 @pytest.mark.slow
 def test_journal_refuses_a_different_battery_without_overwrite(tmp_path, friction_plant_fmu):
-    path = write(tmp_path, RESUME.format(n=2))
+    path = write(tmp_path, resume_battery(2))
     out = tmp_path / "out"
     run_battery([load_battery(path)], out, friction_plant_fmu, workers=1, progress=False)
     with pytest.raises(BatteryError, match="--resume"):
@@ -148,7 +129,7 @@ def test_journal_refuses_a_different_battery_without_overwrite(tmp_path, frictio
     again = run_battery([load_battery(path)], out, friction_plant_fmu, workers=1,
                         resume=True, progress=False)
     assert again.computed == 0
-    other = write(tmp_path, RESUME.format(n=3), "other.toml")
+    other = write(tmp_path, resume_battery(3), "other.toml")
     with pytest.raises(BatteryError, match="cannot resume"):
         run_battery([load_battery(other)], out, friction_plant_fmu, workers=1, resume=True,
                     progress=False)
@@ -159,7 +140,7 @@ def test_killed_battery_resumes_without_recomputing_or_losing_runs(
     tmp_path, friction_plant_fmu
 ):
     n = 24
-    path = write(tmp_path, RESUME.format(n=n))
+    path = write(tmp_path, resume_battery(n))
     reference = tmp_path / "reference"
     run_battery([load_battery(path)], reference, friction_plant_fmu, workers=2, progress=False)
 

@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from harness import PAPWC_PAPER, scenario_toml
 
 import papwc.battery.engines as engines
 from papwc.battery import load_battery, run_battery
@@ -25,24 +26,14 @@ from papwc.cli import main
 pytestmark = pytest.mark.slow
 
 PROJECT = Path(__file__).resolve().parents[2]
-BATTERY = """\
-name = "{name}"
-[maneuver]
-x_ref = 0.01
-T = 0.01
-duration = 1.0
-iterations = 2
-[[controller]]
-kind = "papwc"
-t_p_max = 0.03
-K_c = 0.8
-{extra}
-"""
 
 
 def battery_file(folder: Path, extra: str, name: str = "lim") -> Path:
     path = folder / f"{name}.toml"
-    path.write_text(BATTERY.format(name=name, extra=textwrap.dedent(extra)), encoding="utf-8")
+    text = scenario_toml(name, maneuver={"x_ref": 0.01, "T": 0.01, "duration": 1.0,
+                                         "iterations": 2},
+                         controllers=[PAPWC_PAPER], tail=textwrap.dedent(extra) + "\n")
+    path.write_text(text, encoding="utf-8")
     return path
 
 

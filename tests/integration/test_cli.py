@@ -23,15 +23,6 @@ def _write(folder: Path, text: str, name: str = "s.toml") -> Path:
     return path
 
 
-@pytest.fixture
-def empty_cwd(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """An empty current folder (nothing may appear in it)."""
-    cwd = tmp_path / "cwd"
-    cwd.mkdir()
-    monkeypatch.chdir(cwd)
-    return cwd
-
-
 def test_cli_run_writes_summary_traces_and_plots(tmp_path, friction_plant_fmu, capsys):
     path = _write(tmp_path, GOOD + '\n[[controller]]\nkind = "pwc"\nt_p_max = 0.03\n')
     out = tmp_path / "out"

@@ -122,7 +122,7 @@ def test_missing_or_broken_fmu_is_a_clear_error(tmp_path, friction_plant_fmu):
 @pytest.mark.parametrize("timing", ["immediate", "delayed"])
 def test_iterations_restart_the_plant_and_carry_the_estimates(friction_plant_fmu, timing):
     with FmuSlave(friction_plant_fmu) as plant:
-        plant.set_start_values({"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0})
+        plant.set_start_values(TABLE_1)
         result = run_controller(plant, ControllerSettings(kind="papwc", t_p_max=0.03),
                                 Maneuver(duration=1.0, iterations=3, timing=timing))
     assert not result.error

@@ -114,8 +114,8 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
     assert not cs.canHandleVariableCommunicationStepSize
     variables = {v.name: v for v in md.modelVariables}
     settings = set(ControllerSettings.field_names())
-    switches = {"f_p_min_computed", "k_p_computed", "k_d_computed", "k_i_computed",
-                "a_max_computed", "t_p_max_unbounded"}
+    switches = {"f_p_min_given", "k_p_given", "k_d_given", "k_i_given", "a_max_given",
+                "t_p_max_given"}
     assert {n for n, v in variables.items() if v.causality == "parameter"} == settings | {
         "T", "kind_code", "x_ref_offset"} | switches
     assert {n for n, v in variables.items() if v.causality == "input"} == {
@@ -133,17 +133,17 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
             assert var.unit == table[name].unit, name
     assert {u.name for u in md.unitDefinitions} >= {"m", "N", "s", "m/s2", "N/m", "s4"}
     assert variables["kind"].type == "String" and variables["kind"].start == "papwc"
-    # inf (no bound) is selected by t_p_max_unbounded; the Real starts at its max
-    assert variables["t_p_max_unbounded"].start == "true"
+    # inf (no bound) is selected by t_p_max_given = false; the Real starts at its max
+    assert variables["t_p_max_given"].start == "false"
     assert float(variables["t_p_max"].start) == float(variables["t_p_max"].max) == 1e6
     assert variables["u"].initial == "exact" and float(variables["u"].start) == 0.0
     assert variables["mode"].start == str(Mode.SETTLED)
     assert variables["maneuver"].type == "Integer" and variables["maneuver"].start == "0"
-    # optional: <name>_computed = true selects the computed default; the Real starts at that
+    # optional: <name>_given = false selects the computed default; the Real starts at that
     # default at the other settings' defaults, inside its range
     for name, start in (("f_p_min", 80.0), ("k_p", 15000.0), ("k_d", 2100.0)):
-        assert variables[f"{name}_computed"].type == "Boolean"
-        assert variables[f"{name}_computed"].start == "true"
+        assert variables[f"{name}_given"].type == "Boolean"
+        assert variables[f"{name}_given"].start == "false"
         assert float(variables[name].start) == start
         assert float(variables[name].min) <= start <= float(variables[name].max)
         assert float(variables[name].min) >= 0.0
@@ -319,14 +319,14 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
         ("kind", "bogus", "parameter kind = 'bogus': must be one of 'exact', 'papwc', 'pid', "
                                  "'pwc'"),
         ("k_p", -5.0, "parameter k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m; "
-                      "k_p_computed = true selects the default"),
+                      "k_p_given = false selects the default"),
         ("T", 0.0, "parameter T = 0.0 s: must satisfy 1e-09 <= T <= 1000 s"),
         ("rest_samples", 0, "parameter rest_samples = 0: must be a whole number 1 <= "
                             "rest_samples <= 1000000"),
         ("f_c_est", 300.0, "parameter f_c_est = 300.0 N: must satisfy 0 < f_c_est < f_p_max "
                            "= 300.0 N"),
         ("t_p_max", -math.inf, "parameter t_p_max = -inf s: must be a finite number or inf; "
-                               "t_p_max_unbounded = true selects no bound"),
+                               "t_p_max_given = false selects no bound"),
         ("history", 0, "parameter history = 0: must be a whole number 1 <= history <= 1000"),
         ("max_pulses", -1, "parameter max_pulses = -1: must be a whole number 1 <= max_pulses "
                            "<= 1000000"),
@@ -336,7 +336,7 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
 )
 def test_invalid_settings_are_refused(controller: FmuInstance, name: str, value,
                                       expected: str) -> None:
-    read = {"k_p": {"k_p_computed": False}, "t_p_max": {"t_p_max_unbounded": False}}
+    read = {"k_p": {"k_p_given": True}, "t_p_max": {"t_p_max_given": True}}
     controller.init(**{name: value}, **read.get(name, {}))  # fmi2OK: the refusal is logged
     errors = controller.logged(FMI2_ERROR)
     assert len(errors) == 1 and expected in errors[0], controller.messages
@@ -351,13 +351,13 @@ def test_invalid_settings_are_refused(controller: FmuInstance, name: str, value,
 
 
 def test_a_switch_decides_whether_the_real_is_read(pulse_controller_unzipped: Path) -> None:
-    """k_p_computed = true (the start): k_p is computed and a k_p set away from its start is
-    refused, not ignored; false: k_p is read. The same coarse force shows which gain acts."""
+    """k_p_given = false (the start): k_p is computed and a k_p set away from its start is
+    refused, not ignored; true: k_p is read. The same coarse force shows which gain acts."""
     forces = {}
     for label, start in (("computed", {}), ("start value", {"k_p": 15000.0}),
-                         ("given", {"k_p": 20000.0, "k_p_computed": False}),
+                         ("given", {"k_p": 20000.0, "k_p_given": True}),
                          ("given at the computed value", {"k_p": 15000.0,
-                                                          "k_p_computed": False})):
+                                                          "k_p_given": True})):
         c = FmuInstance(pulse_controller_unzipped, "controller")
         try:
             c.init(**start, x_ref=0.03, m_est=150.0, f_p_max=1000.0)
@@ -373,8 +373,8 @@ def test_a_switch_decides_whether_the_real_is_read(pulse_controller_unzipped: Pa
     try:
         c.init(k_p=20000.0)
         (error,) = c.logged(FMI2_ERROR)
-        assert ("parameter k_p = 20000.0 N/m is not read while k_p_computed = true (k_p is "
-                "computed): set k_p_computed = false to use it, or leave k_p at its start value "
+        assert ("parameter k_p = 20000.0 N/m is not read while k_p_given = false (k_p is "
+                "computed): set k_p_given = true to use it, or leave k_p at its start value "
                 "15000.0; initialization refused") in error
         with pytest.raises(FMICallException) as info:
             sample(c, 0.0, 0.0)

@@ -12,21 +12,11 @@ from __future__ import annotations
 import random
 import xml.etree.ElementTree as ET
 import zipfile
-from ctypes import byref
 from pathlib import Path
 
 import pytest
-from fmpy import read_model_description
-from fmpy.fmi1 import calloc, free
-from fmpy.fmi2 import (
-    FMU2Slave,
-    fmi2CallbackAllocateMemoryTYPE,
-    fmi2CallbackFreeMemoryTYPE,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-)
-from fmpy.logging import addLoggerProxy
 from fmpy.validation import validate_fmu
+from harness import DEVIATIONS, FmuInstance
 
 from papwc.controllers.settings import ControllerSettings
 from papwc.errors import FmuError
@@ -39,13 +29,7 @@ T = 0.01
 
 #: The cases of scenarios/realism.toml, and all deviations together.
 CASES = {
-    "stribeck": {"v_s": 1e-3},
-    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
-    "ripple": {"ripple": 0.1, "ripple_period": 1e-3},
-    "stiction": {"f_s_spread": 0.1, "seed": 4},
-    "lag": {"tau_u": 2e-3},
-    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
-    "noise": {"noise_std": 2e-7, "x_resolution": 1e-7, "seed": 9},
+    **DEVIATIONS,
     "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
             "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "noise_std": 2e-7,
             "x_resolution": 1e-7},
@@ -65,54 +49,24 @@ def forces(seed: int, n: int) -> list[float]:
     return [rng.choice((0.0, 0.0, 300.0, -300.0, 120.0, 200.0, -90.0)) for _ in range(n)]
 
 
-class Instance:
-    """One FrictionPlant instance through fmpy's FMU2Slave, its log kept."""
+def outputs(fmu: FmuInstance) -> list[float]:
+    """The plant FMU's OUTPUTS now."""
+    return fmu.fmu.getReal([fmu.vars[n].valueReference for n in OUTPUTS])
 
-    def __init__(self, unzipdir: Path, params: dict) -> None:
-        md = read_model_description(str(unzipdir))
-        self.vr = {v.name: v.valueReference for v in md.modelVariables}
-        self.types = {v.name: v.type for v in md.modelVariables}
-        self.log: list[str] = []
-        self._callbacks = fmi2CallbackFunctions()
-        self._logger = fmi2CallbackLoggerTYPE(
-            lambda c, name, status, category, message: self.log.append(message.decode()))
-        self._callbacks.logger = self._logger
-        self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(byref(self._callbacks))
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=str(unzipdir),
-                             modelIdentifier="FrictionPlant", instanceName="plant")
-        self.fmu.instantiate(callbacks=self._callbacks, loggingOn=True)
-        self.fmu.setupExperiment(startTime=0.0)
-        self.fmu.enterInitializationMode()
-        for name, value in params.items():
-            if self.types[name] == "Integer":
-                self.fmu.setInteger([self.vr[name]], [value])
-            else:
-                self.fmu.setReal([self.vr[name]], [value])
-        self.fmu.exitInitializationMode()
-        self.k = 0
 
-    def step(self, u: float) -> list[float]:
-        self.fmu.setReal([self.vr["u"]], [u])
-        self.fmu.doStep(self.k * T, T)
-        self.k += 1
-        return self.outputs()
-
-    def outputs(self) -> list[float]:
-        return self.fmu.getReal([self.vr[n] for n in OUTPUTS])
-
-    def close(self) -> None:
-        self.fmu.terminate()
-        self.fmu.freeInstance()
+def step(fmu: FmuInstance, u: float) -> list[float]:
+    """One step of T with the force u (N); the outputs after it."""
+    fmu.advance(T, u=u)
+    return outputs(fmu)
 
 
 @pytest.fixture
 def instances(friction_plant_unzipped: Path):
-    made: list[Instance] = []
+    made: list[FmuInstance] = []
 
-    def make(params: dict) -> Instance:
-        made.append(Instance(friction_plant_unzipped, params))
+    def make(params: dict) -> FmuInstance:
+        made.append(FmuInstance(friction_plant_unzipped, "plant"))
+        made[-1].init(**params)
         return made[-1]
 
     yield make
@@ -128,11 +82,11 @@ def test_fmu_and_in_process_plant_agree_bit_for_bit(case: str, instances) -> Non
     physics.set_start_values(params)
     index = physics.watch(OUTPUTS)
     physics.initialize()
-    assert fmu.outputs() == [physics.values[i] for i in index]
+    assert outputs(fmu) == [physics.values[i] for i in index]
     for k, u in enumerate(forces(len(case), 120)):
         physics.u = u
         physics.do_step(k * T, T)
-        assert fmu.step(u) == [physics.values[i] for i in index], k
+        assert step(fmu, u) == [physics.values[i] for i in index], k
 
 
 def test_defaults_are_still_eq1_exactly(instances) -> None:
@@ -140,7 +94,7 @@ def test_defaults_are_still_eq1_exactly(instances) -> None:
     u_seq = forces(1, 150)
     states = simulate(u_seq, T, 150.0, 100.0, 130.0, 700.0)
     for u, (x, v) in zip(u_seq, states[1:], strict=True):
-        assert fmu.step(u)[:2] == [x, v]
+        assert step(fmu, u)[:2] == [x, v]
 
 
 @pytest.mark.parametrize("case", ("stiction", "noise", "all", "lugre", "flexible",
@@ -150,23 +104,23 @@ def test_state_get_set_and_serialize_continue_bit_for_bit(case: str, instances) 
     u_seq = forces(7, 80)
     a = instances(params)
     for u in u_seq[:40]:
-        a.step(u)
+        step(a, u)
     state = a.fmu.getFMUstate()
     serialized = a.fmu.serializeFMUstate(state)
-    expected = [a.step(u) for u in u_seq[40:]]
+    expected = [step(a, u) for u in u_seq[40:]]
     # The same instance, back to the saved state (and its time: step 40).
     a.fmu.setFMUstate(state)
     a.fmu.freeFMUstate(state)
-    a.k = 40
-    assert [a.step(u) for u in u_seq[40:]] == expected
+    a.t = 40 * T
+    assert [step(a, u) for u in u_seq[40:]] == expected
     # Another instance, from the serialized state.
     b = instances(params)
     restored = b.fmu.deSerializeFMUstate(serialized)
     b.fmu.setFMUstate(restored)
     b.fmu.freeFMUstate(restored)
-    b.k = 40
-    assert [b.step(u) for u in u_seq[40:]] == expected
-    assert not [m for m in a.log + b.log if "refused" in m]
+    b.t = 40 * T
+    assert [step(b, u) for u in u_seq[40:]] == expected
+    assert not [m for m in a.messages + b.messages if "refused" in m.text]
 
 
 def test_random_stiction_and_noise_follow_the_seed(instances) -> None:
@@ -175,7 +129,7 @@ def test_random_stiction_and_noise_follow_the_seed(instances) -> None:
     for seed in (1, 1, 2):
         fmu = instances({"f_s_spread": 0.1, "noise_std": 2e-7, "x_resolution": 1e-7,
                          "seed": seed})
-        runs.setdefault(seed, []).append([fmu.step(u) for u in u_seq])
+        runs.setdefault(seed, []).append([step(fmu, u) for u in u_seq])
     assert runs[1][0] == runs[1][1]
     assert runs[1][0] != runs[2][0]
 
@@ -243,15 +197,15 @@ def test_motor_encoder_reads_the_drive_with_its_own_stream(instances) -> None:
     motor = instances({"x_d_noise_std": 2e-7, "x_d_resolution": 1e-7, "seed": 4})
     noise_d = EncoderNoise(2e-7, 4, MOTOR_STREAM)
     for k, u in enumerate(u_seq, start=1):
-        x, _, x_meas, _, _ = table.step(u)
-        x2, _, x_meas2, x_d, x_d_meas = motor.step(u)
+        x, _, x_meas, _, _ = step(table, u)
+        x2, _, x_meas2, x_d, x_d_meas = step(motor, u)
         assert (x2, x_d, x_meas2) == (x, x, x)  # an ideal table encoder
         # x_meas's law with the motor encoder's parameters and stream, point k
         assert x_d_meas == quantize(x + noise_d.draw(k), 1e-7)
     both = instances({"noise_std": 2e-7, "x_d_noise_std": 2e-7, "seed": 4})
-    rows = [both.step(u) for u in u_seq]
+    rows = [step(both, u) for u in u_seq]
     assert all(x_d == x for x, _, _, x_d, _ in rows)
     assert sum(x_meas != x_d_meas for _, _, x_meas, _, x_d_meas in rows) > 100
     flexible = instances(CASES["flexible"])
-    rows = [flexible.step(u) for u in [300.0] * 3 + [0.0] * 30]
+    rows = [step(flexible, u) for u in [300.0] * 3 + [0.0] * 30]
     assert any(x_d != x for x, _, _, x_d, _ in rows)

@@ -12,8 +12,8 @@ import sys
 from pathlib import Path
 
 import pytest
-from fmpy import extract, read_model_description
-from fmpy.fmi2 import FMU2Slave
+from fmpy import read_model_description
+from harness import FmuInstance
 
 from papwc.fmubuild.model_description import read_model_description as read_md_xml
 from papwc.model.controller_settings import KIND_CODES, PULSE_CONTROLLER_VARIABLES
@@ -69,13 +69,11 @@ def test_plant_outputs_are_calculated_from_the_parameters(friction_plant_fmu: Pa
     assert all(o.dependencies == [] for o in md.outputs)
 
 
-def test_outputs_in_initialization_mode_follow_the_parameters(friction_plant_fmu: Path,
-                                                             tmp_path: Path) -> None:
-    md = read_model_description(str(friction_plant_fmu))
-    vr = {v.name: v.valueReference for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(str(friction_plant_fmu), tmp_path),
-                    modelIdentifier=md.coSimulation.modelIdentifier, instanceName="plant")
-    fmu.instantiate()
+def test_outputs_in_initialization_mode_follow_the_parameters(
+        friction_plant_unzipped: Path) -> None:
+    instance = FmuInstance(friction_plant_unzipped, "plant")
+    fmu = instance.fmu
+    vr = {name: v.valueReference for name, v in instance.vars.items()}
     try:
         fmu.setupExperiment(startTime=0.0)
         fmu.setReal([vr["x0"], vr["v0"], vr["x_resolution"]], [0.00123456, -0.02, 1e-4])
@@ -93,61 +91,53 @@ def test_outputs_in_initialization_mode_follow_the_parameters(friction_plant_fmu
         fmu.freeInstance()
 
 
-class Controller:
-    """PulseController.fmu driven by fmpy's FMU2Slave (a Python host)."""
+def controller(unzipped: Path) -> FmuInstance:
+    """PulseController.fmu driven by fmpy's FMU2Slave (a Python host), experiment set up."""
+    c = FmuInstance(unzipped, "controller")
+    c.fmu.setupExperiment(startTime=0.0)
+    return c
 
-    def __init__(self, fmu_path: Path, folder: Path) -> None:
-        self.md = read_model_description(str(fmu_path))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=extract(str(fmu_path), folder),
-                             modelIdentifier="PulseController", instanceName="controller")
-        self.fmu.instantiate(loggingOn=True)
-        self.fmu.setupExperiment(startTime=0.0)
 
-    def run(self, steps: int = 3) -> list[float]:
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
-        forces = []
-        for k in range(steps):
-            self.fmu.doStep(currentCommunicationPoint=k * 0.01, communicationStepSize=0.01)
-            forces.append(self.fmu.getReal([self.vr["u"]])[0])
-        return forces
-
-    def close(self) -> None:
-        self.fmu.terminate()
-        self.fmu.freeInstance()
+def run(c: FmuInstance, steps: int = 3) -> list[float]:
+    """Initialize with the values set so far, then ``steps`` steps of 0.01 s; the forces."""
+    c.fmu.enterInitializationMode()
+    c.fmu.exitInitializationMode()
+    forces = []
+    for k in range(steps):
+        c.fmu.doStep(currentCommunicationPoint=k * 0.01, communicationStepSize=0.01)
+        forces.append(c.get("u"))
+    return forces
 
 
 @pytest.mark.parametrize("code", range(len(KIND_CODES) + 1))
-def test_kind_code_selects_the_kind(pulse_controller_fmu: Path, tmp_path: Path, code) -> None:
-    c = Controller(pulse_controller_fmu, tmp_path)
+def test_kind_code_selects_the_kind(pulse_controller_unzipped: Path, code) -> None:
+    c = controller(pulse_controller_unzipped)
     try:
-        c.fmu.setInteger([c.vr["kind_code"]], [code])
-        c.fmu.setReal([c.vr["x_ref_offset"]], [0.01])
-        forces = c.run()
+        c.set("kind_code", code)
+        c.set("x_ref_offset", 0.01)
+        forces = run(c)
         want = "papwc" if code == 0 else KIND_CODES[code - 1]  # 0: the String kind's start
-        assert c.fmu.getString([c.vr["kind"]]) == [want.encode()]
+        assert c.get("kind") == want
         assert forces[0] > 0.0  # the reference is x_ref_offset + x_ref = 0.01 m
     finally:
         c.close()
 
 
-def test_kind_and_kind_code_that_disagree_are_refused(pulse_controller_fmu: Path,
-                                                      tmp_path: Path) -> None:
-    c = Controller(pulse_controller_fmu, tmp_path / "a")
+def test_kind_and_kind_code_that_disagree_are_refused(pulse_controller_unzipped: Path) -> None:
+    c = controller(pulse_controller_unzipped)
     try:
-        c.fmu.setString([c.vr["kind"]], ["pwc"])
-        c.fmu.setInteger([c.vr["kind_code"]], [KIND_CODES.index("papwc") + 1])
+        c.set("kind", "pwc")
+        c.set("kind_code", KIND_CODES.index("papwc") + 1)
         with pytest.raises(Exception, match="status 2"):  # Discard: initialization refused
-            c.run(1)
+            run(c, 1)
     finally:
         c.close()
-    same = Controller(pulse_controller_fmu, tmp_path / "b")
+    same = controller(pulse_controller_unzipped)
     try:
-        same.fmu.setString([same.vr["kind"]], ["pwc"])
-        same.fmu.setInteger([same.vr["kind_code"]], [KIND_CODES.index("pwc") + 1])
-        same.fmu.setReal([same.vr["x_ref_offset"]], [0.01])
-        assert same.run(1)[0] > 0.0
+        same.set("kind", "pwc")
+        same.set("kind_code", KIND_CODES.index("pwc") + 1)
+        same.set("x_ref_offset", 0.01)
+        assert run(same, 1)[0] > 0.0
     finally:
         same.close()
 

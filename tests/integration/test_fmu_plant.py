@@ -26,13 +26,13 @@ import pytest
 from fmpy import simulate_fmu
 from fmpy.fmi1 import FMICallException
 from fmpy.util import read_csv
-from harness import FMI2_DISCARD, FMI2_ERROR, FmuInstance, open_loop
+from harness import FMI2_DISCARD, FMI2_ERROR, FmuInstance, open_loop, table_1
 
 from papwc.master import Execution, FixedStepAlgorithm, FmuSlave, SignalSlave
 from papwc.model.stickslip import quantize, simulate, step
 
 T = 0.01
-PARAMS = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+PARAMS = table_1()
 #: Pulses above f_s both ways, coasting, a sub-stiction force, a reversal while sliding.
 U_SEQ = [300.0] * 5 + [0.0] * 20 + [120.0] * 10 + [-300.0] * 5 + [0.0] * 15
 U_SEQ += [250.0] * 7 + [-200.0] * 4 + [0.0] * 34

@@ -15,20 +15,11 @@ import json
 import subprocess
 import sys
 import textwrap
-from ctypes import byref
 from pathlib import Path
 
 import pytest
-from fmpy import extract, read_model_description
-from fmpy.fmi1 import FMICallException, calloc, free
-from fmpy.fmi2 import (
-    FMU2Slave,
-    fmi2CallbackAllocateMemoryTYPE,
-    fmi2CallbackFreeMemoryTYPE,
-    fmi2CallbackFunctions,
-    fmi2CallbackLoggerTYPE,
-)
-from fmpy.logging import addLoggerProxy
+from fmpy.fmi1 import FMICallException
+from harness import FmuInstance, table_1
 
 from papwc.controllers import make_controller
 from papwc.controllers.settings import ControllerSettings
@@ -37,81 +28,39 @@ from papwc.master import FmuSlave
 from papwc.model.stickslip import step
 
 T = 0.01
-PLANT = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+PLANT = table_1()
 
 
-#: Messages by componentEnvironment: fmpy's logger proxy keeps one logger per process, so
-#: every instance here shares one and is told apart by its environment.
-MESSAGES: dict[int, list[tuple[int, str]]] = {}
+def started(unzipped: Path, name: str) -> FmuInstance:
+    """An instance of the extracted FMU, initialized with its start values."""
+    fmu = FmuInstance(unzipped, name)
+    fmu.init()
+    return fmu
 
 
-def _log(env, instance, status, category, message) -> None:
-    MESSAGES.setdefault(env or 0, []).append((status, (message or b"").decode()))
+def state_bytes(fmu: FmuInstance) -> bytes:
+    """The instance's state, got and serialized."""
+    state = fmu.fmu.getFMUstate()
+    data = fmu.fmu.serializeFMUstate(state)
+    fmu.fmu.freeFMUstate(state)
+    return bytes(data)
 
 
-LOGGER = fmi2CallbackLoggerTYPE(_log)
-
-
-class Instance:
-    """One FMU instance through fmpy's FMU2Slave, its log kept."""
-
-    def __init__(self, fmu: Path, name: str) -> None:
-        self.md = read_model_description(str(fmu))
-        self.unzipped = extract(str(fmu))
-        self.vr = {v.name: v.valueReference for v in self.md.modelVariables}
-        env = len(MESSAGES) + 1
-        self.messages = MESSAGES.setdefault(env, [])
-        callbacks = fmi2CallbackFunctions()
-        callbacks.componentEnvironment = env
-        callbacks.logger = LOGGER
-        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(byref(callbacks))
-        self._callbacks = callbacks
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipped,
-                             modelIdentifier=self.md.coSimulation.modelIdentifier,
-                             instanceName=name)
-        self.fmu.instantiate(callbacks=callbacks, loggingOn=True)
-        self.fmu.setupExperiment(startTime=0.0)
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
-        self.time = 0.0
-
-    def set(self, name: str, value: float) -> None:
-        self.fmu.setReal([self.vr[name]], [value])
-
-    def get(self, name: str) -> float:
-        return self.fmu.getReal([self.vr[name]])[0]
-
-    def do_step(self) -> None:
-        self.fmu.doStep(self.time, T)
-        self.time += T
-
-    def state_bytes(self) -> bytes:
-        state = self.fmu.getFMUstate()
-        data = self.fmu.serializeFMUstate(state)
-        self.fmu.freeFMUstate(state)
-        return bytes(data)
-
-    def try_state(self, data: bytes) -> str:
-        """deSerializeFMUstate, setFMUstate, freeFMUstate; return the message logged."""
-        before = len(self.messages)
-        state = self.fmu.deSerializeFMUstate(data)
-        self.fmu.setFMUstate(state)
-        self.fmu.freeFMUstate(state)
-        new = [m for s, m in self.messages[before:] if s == 3]
-        assert len(new) == 1, self.messages[before:]
-        return new[0]
-
-    def close(self) -> None:
-        self.fmu.terminate()
-        self.fmu.freeInstance()
+def try_state(fmu: FmuInstance, data: bytes) -> str:
+    """deSerializeFMUstate, setFMUstate, freeFMUstate; return the message logged."""
+    before = len(fmu.messages)
+    state = fmu.fmu.deSerializeFMUstate(data)
+    fmu.fmu.setFMUstate(state)
+    fmu.fmu.freeFMUstate(state)
+    new = [m.text for m in fmu.messages[before:] if m.status == 3]
+    assert len(new) == 1, fmu.messages[before:]
+    return new[0]
 
 
 @pytest.fixture
-def instances(pythonfmu_plant_fmu: Path, pulse_controller_fmu: Path):
-    plant = Instance(pythonfmu_plant_fmu, "plant")
-    controller = Instance(pulse_controller_fmu, "controller")
+def instances(pythonfmu_plant_unzipped: Path, pulse_controller_unzipped: Path):
+    plant = started(pythonfmu_plant_unzipped, "plant")
+    controller = started(pulse_controller_unzipped, "controller")
     yield plant, controller
     plant.close()
     controller.close()
@@ -138,26 +87,25 @@ def bad_states(own: bytes, other: bytes) -> list[tuple[bytes, str]]:
 
 def test_a_plant_state_that_does_not_fit_is_refused_and_the_plant_steps_on(instances) -> None:
     plant, controller = instances
-    own, other = plant.state_bytes(), controller.state_bytes()
+    own, other = state_bytes(plant), state_bytes(controller)
     cases = bad_states(own, other) + [
         (edited(own, m=-1.0), "its parameters are invalid: m = -1.0 kg"),
         (edited(own, x="far"), "field x = 'far' is not a Real"),
     ]
     x, v = 0.0, 0.0
     for k, (data, words) in enumerate(cases):
-        message = plant.try_state(data)
+        message = try_state(plant, data)
         assert "setFMUstate refused" in message and words in message, message
         assert "the instance keeps its state" in message
         u = 300.0 if k % 3 == 0 else 0.0
-        plant.set("u", u)
-        plant.do_step()
+        plant.advance(T, u=u)
         x, v = step(x, v, u, T, PLANT["m"], PLANT["f_c"], PLANT["f_s"], PLANT["c"])
         assert (plant.get("x"), plant.get("v")) == (x, v)
 
 
 def test_a_controller_state_that_does_not_fit_is_refused_and_it_controls_on(instances) -> None:
     plant, controller = instances
-    own, other = controller.state_bytes(), plant.state_bytes()
+    own, other = state_bytes(controller), state_bytes(plant)
     cases = bad_states(own, other) + [
         (edited(own, K_c=5.0), "its parameters are invalid: K_c = 5.0"),
         (edited(own, _controller=[1.0, 2.0]), "the controller state does not fit"),
@@ -167,12 +115,11 @@ def test_a_controller_state_that_does_not_fit_is_refused_and_it_controls_on(inst
     x_ref = 0.01
     controller.set("x_ref", x_ref)
     for k, (data, words) in enumerate(cases):
-        message = controller.try_state(data)
+        message = try_state(controller, data)
         assert "setFMUstate refused" in message and words in message, message
         x_meas = 1e-3 * k
-        controller.set("x_meas", x_meas)
-        controller.do_step()
-        assert controller.get("u") == reference.update(controller.time - T, x_meas, x_ref)
+        controller.advance(T, x_meas=x_meas)
+        assert controller.get("u") == reference.update(controller.t - T, x_meas, x_ref)
 
 
 @pytest.mark.parametrize("which, parameter, output", [("plant", "m", "x"),
@@ -180,29 +127,28 @@ def test_a_controller_state_that_does_not_fit_is_refused_and_it_controls_on(inst
 def test_parameters_and_outputs_set_after_initialization_are_refused(
         instances, which, parameter, output) -> None:
     fmu = dict(zip(("plant", "controller"), instances, strict=True))[which]
-    before = fmu.state_bytes()
+    before = state_bytes(fmu)
     kept = fmu.get(parameter), fmu.get(output)
     for name in (parameter, output):
         count = len(fmu.messages)
         fmu.set(name, 1.5)
-        (status, message), = fmu.messages[count:]
+        (status, _, message), = fmu.messages[count:]
         assert status == 3 and name in message and "refused" in message, message
     assert (fmu.get(parameter), fmu.get(output)) == kept
-    assert fmu.state_bytes() == before
+    assert state_bytes(fmu) == before
 
 
-def test_calls_after_terminate_are_refused(pythonfmu_plant_fmu: Path) -> None:
-    plant = Instance(pythonfmu_plant_fmu, "plant")
-    plant.set("u", 300.0)
-    plant.do_step()
+def test_calls_after_terminate_are_refused(pythonfmu_plant_unzipped: Path) -> None:
+    plant = started(pythonfmu_plant_unzipped, "plant")
+    plant.advance(T, u=300.0)
     x = plant.get("x")
     plant.fmu.terminate()
     plant.set("u", -300.0)
-    assert "input u cannot be set after fmi2Terminate" in plant.messages[-1][1]
+    assert "input u cannot be set after fmi2Terminate" in plant.messages[-1].text
     with pytest.raises(FMICallException) as info:
-        plant.fmu.doStep(plant.time, T)
+        plant.fmu.doStep(plant.t, T)
     assert info.value.status == 2  # Discard
-    assert "the simulation was terminated" in plant.messages[-1][1]
+    assert "the simulation was terminated" in plant.messages[-1].text
     assert plant.get("x") == x and plant.get("u") == 300.0
     plant.fmu.freeInstance()
 

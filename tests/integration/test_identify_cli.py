@@ -22,15 +22,6 @@ from papwc.scenario import load_scenario
 TRUTH = {"m": 120.0, "f_c": 80.0, "f_s": 110.0, "c": 500.0}
 
 
-@pytest.fixture
-def empty_cwd(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """An empty current folder (nothing may appear in it)."""
-    cwd = tmp_path / "cwd"
-    cwd.mkdir()
-    monkeypatch.chdir(cwd)
-    return cwd
-
-
 def _identified(out: Path) -> dict[str, dict[str, str]]:
     with open(out / "identified.csv", newline="") as f:
         return {row["parameter"]: row for row in csv.DictReader(f)}

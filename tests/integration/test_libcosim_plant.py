@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 from fmpy import read_model_description
-from harness import open_loop
+from harness import open_loop, table_1
 
 from papwc.master import FmuSlave
 from papwc.model.stickslip import simulate
@@ -23,7 +23,7 @@ CosimLocalSlave = pytest.importorskip("libcosimpy.CosimSlave").CosimLocalSlave
 
 T_NS = 10_000_000  # 0.01 s in libcosim's integer nanoseconds
 T = 0.01
-PARAMS = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+PARAMS = table_1()
 U_SEQ = [300.0] * 5 + [0.0] * 20 + [120.0] * 10 + [-300.0] * 5 + [0.0] * 15
 U_SEQ += [250.0] * 7 + [-200.0] * 4 + [0.0] * 34
 

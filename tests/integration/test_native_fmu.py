@@ -34,7 +34,7 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
-from fmpy.fmi2 import FMU2Slave
+from harness import FmuInstance
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -74,69 +74,10 @@ def fmi2_functions() -> list[str]:
     return names
 
 
-class Native:
-    """One instance of the native FMU through fmpy, with its own logger."""
-
-    def __init__(self, unzipped: Path, name: str = "plant", logging: bool = True,
-                 guid: str | None = None) -> None:
-        md = read_model_description(str(unzipped))
-        self.vr = {v.name: v.valueReference for v in md.modelVariables}
-        self.types = {v.name: v.type for v in md.modelVariables}
-        self.fmu = FMU2Slave(guid=guid or md.guid, unzipDirectory=str(unzipped),
-                             modelIdentifier="FrictionPlant", instanceName=name)
-        self.messages: list[tuple[int, str]] = []
-        self.fmu.instantiate(loggingOn=logging,
-                             callbacks=None if not logging else self._callbacks())
-        self.t = 0.0
-
-    def _callbacks(self):
-        from ctypes import byref
-
-        from fmpy.fmi1 import calloc, free
-        from fmpy.fmi2 import (
-            fmi2CallbackAllocateMemoryTYPE,
-            fmi2CallbackFreeMemoryTYPE,
-            fmi2CallbackFunctions,
-            fmi2CallbackLoggerTYPE,
-        )
-        from fmpy.logging import addLoggerProxy
-
-        callbacks = fmi2CallbackFunctions()
-        self._logger = fmi2CallbackLoggerTYPE(
-            lambda env, name, status, category, message: self.messages.append(
-                (status, message.decode())))
-        callbacks.logger = self._logger
-        callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
-        callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        addLoggerProxy(byref(callbacks))
-        self._keep = callbacks
-        return callbacks
-
-    def set(self, name: str, value) -> None:
-        if self.types[name] == "Integer":
-            self.fmu.setInteger([self.vr[name]], [int(value)])
-        else:
-            self.fmu.setReal([self.vr[name]], [float(value)])
-
-    def init(self, **params) -> None:
-        self.fmu.setupExperiment(startTime=0.0)
-        self.fmu.enterInitializationMode()
-        for name, value in params.items():
-            self.set(name, value)
-        self.fmu.exitInitializationMode()
-        self.t = 0.0
-
-    def step(self, u: float, h: float = T) -> None:
-        self.fmu.setReal([self.vr["u"]], [u])
-        self.fmu.doStep(self.t, h)
-        self.t += h
-
-    def outputs(self) -> tuple:
-        return (*self.fmu.getReal([self.vr[n] for n in OUTPUTS]),
-                self.fmu.getBoolean([self.vr["stuck"]])[0])
-
-    def close(self) -> None:
-        self.fmu.freeInstance()
+def outputs(fmu: FmuInstance) -> tuple:
+    """x, v, x_meas of the plant FMU, and whether it is stuck."""
+    return (*fmu.fmu.getReal([fmu.vars[n].valueReference for n in OUTPUTS]),
+            fmu.fmu.getBoolean([fmu.vars["stuck"].valueReference])[0])
 
 
 def plant_outputs(plant: Plant) -> tuple:
@@ -158,12 +99,12 @@ def test_the_native_fmu_is_the_model_layer_bit_for_bit(friction_plant_unzipped: 
                                                        seq, cut: int, m: float) -> None:
     params = {**CASES[case], "m": m}
     plant = Plant({**PLANT_DEFAULTS, **params})
-    fmu = Native(friction_plant_unzipped)
-    other = Native(friction_plant_unzipped, "other")
+    fmu = FmuInstance(friction_plant_unzipped, "plant")
+    other = FmuInstance(friction_plant_unzipped, "other")
     try:
         fmu.init(**params)
         other.init(**params)
-        assert fmu.outputs() == plant_outputs(plant)
+        assert outputs(fmu) == plant_outputs(plant)
         cut = min(cut, len(seq) - 1)
         saved = None
         for k, (u, h) in enumerate(seq):
@@ -175,36 +116,36 @@ def test_the_native_fmu_is_the_model_layer_bit_for_bit(friction_plant_unzipped: 
                 other.fmu.freeFMUstate(restored)
                 other.t = fmu.t
                 t_saved, expected = fmu.t, []
-            fmu.step(u, h)
+            fmu.advance(h, u=u)
             assert plant.step(u, h) is None
-            assert fmu.outputs() == plant_outputs(plant), (case, k)
+            assert outputs(fmu) == plant_outputs(plant), (case, k)
             if saved is not None:
-                expected.append(fmu.outputs())
-                other.step(u, h)
-                assert other.outputs() == expected[-1]
+                expected.append(outputs(fmu))
+                other.advance(h, u=u)
+                assert outputs(other) == expected[-1]
         fmu.fmu.setFMUstate(saved)  # back to the middle: the same steps again
         fmu.fmu.freeFMUstate(saved)
         fmu.t = t_saved
-        for (u, h), outputs in zip(seq[cut:], expected, strict=True):
-            fmu.step(u, h)
-            assert fmu.outputs() == outputs
-        assert not [m for s, m in fmu.messages + other.messages if s >= FMI2_DISCARD]
+        for (u, h), then in zip(seq[cut:], expected, strict=True):
+            fmu.advance(h, u=u)
+            assert outputs(fmu) == then
+        assert not [m for m in fmu.messages + other.messages if m.status >= FMI2_DISCARD]
     finally:
         fmu.close()
         other.close()
 
 
 def test_fmi2_reset_gives_the_same_run_again(friction_plant_unzipped: Path) -> None:
-    fmu = Native(friction_plant_unzipped)
+    fmu = FmuInstance(friction_plant_unzipped, "plant")
     runs = []
     for _ in range(3):
         fmu.init(**CASES["all"])
         for k in range(60):
-            fmu.step(300.0 if k < 6 else 0.0)
-        runs.append(fmu.outputs())
+            fmu.advance(T, u=300.0 if k < 6 else 0.0)
+        runs.append(outputs(fmu))
         fmu.fmu.terminate()
         fmu.fmu.reset()
-    fmu.close()
+    fmu.close(terminate=False)
     assert runs[0] == runs[1] == runs[2] and runs[0][0] > 1e-4
 
 
@@ -221,8 +162,8 @@ def refused(call) -> int:
 @pytest.mark.parametrize("logging", [True, False])
 def test_each_refusal_is_an_error_or_a_discard_never_ok(friction_plant_unzipped: Path,
                                                         logging: bool) -> None:
-    fmu = Native(friction_plant_unzipped, logging=logging)
-    vr = fmu.vr
+    fmu = FmuInstance(friction_plant_unzipped, "plant", logging=logging)
+    vr = {name: v.valueReference for name, v in fmu.vars.items()}
     assert refused(lambda: fmu.fmu.doStep(0.0, T)) == FMI2_ERROR  # before initialization
     fmu.fmu.setupExperiment(startTime=0.0)
     fmu.fmu.enterInitializationMode()
@@ -233,8 +174,8 @@ def test_each_refusal_is_an_error_or_a_discard_never_ok(friction_plant_unzipped:
     fmu.set("m", 150.0)
     fmu.set("f_s", 130.0)
     fmu.fmu.exitInitializationMode()  # corrected: accepted
-    fmu.step(300.0)
-    x = fmu.outputs()
+    fmu.advance(T, u=300.0)
+    x = outputs(fmu)
     cases = {
         "parameter after initialization": lambda: fmu.fmu.setReal([vr["m"]], [300.0]),
         "output set": lambda: fmu.fmu.setReal([vr["x"]], [1.0]),
@@ -256,8 +197,8 @@ def test_each_refusal_is_an_error_or_a_discard_never_ok(friction_plant_unzipped:
         assert refused(lambda h=h: fmu.fmu.doStep(fmu.t, h)) == FMI2_DISCARD, h
     fmu.fmu.setReal([vr["u"]], [math.nan])
     assert refused(lambda: fmu.fmu.doStep(fmu.t, T)) == FMI2_DISCARD
-    assert fmu.outputs() == x  # every refusal left the state as it was
-    fmu.step(0.0)  # and the instance steps on
+    assert outputs(fmu) == x  # every refusal left the state as it was
+    fmu.advance(T, u=0.0)  # and the instance steps on
     state = fmu.fmu.getFMUstate()
     data = bytes(fmu.fmu.serializeFMUstate(state))
     fmu.fmu.freeFMUstate(state)
@@ -273,7 +214,7 @@ def test_each_refusal_is_an_error_or_a_discard_never_ok(friction_plant_unzipped:
     m_at = 8 + 64 + 16  # after the header: m is FpParams' first field, the state follows it
     x_at = m_at + ctypes.sizeof(FpParams)
     assert struct.unpack_from("<d", data, m_at) == (150.0,)
-    assert struct.unpack_from("<d", data, x_at) == (fmu.outputs()[0],)
+    assert struct.unpack_from("<d", data, x_at) == (outputs(fmu)[0],)
     bad_states["invalid parameter m = -1"] = (data[:m_at] + struct.pack("<d", -1.0)
                                               + data[m_at + 8:])
     bad_states["position not finite"] = (data[:x_at] + struct.pack("<d", math.nan)
@@ -284,24 +225,23 @@ def test_each_refusal_is_an_error_or_a_discard_never_ok(friction_plant_unzipped:
     assert refused(lambda: fmu.fmu.doStep(fmu.t, T)) == FMI2_ERROR
     assert refused(lambda: fmu.fmu.setReal([vr["u"]], [1.0])) == FMI2_ERROR
     if logging:
-        errors = [m for s, m in fmu.messages if s == FMI2_ERROR]
+        errors = fmu.logged(FMI2_ERROR)
         assert any("parameter f_s = 50.0 N: must be >= f_c = 100.0 N" in m for m in errors)
         assert any("parameter m = -1.0 kg: must satisfy 1e-06 <= m <= 1e+09 kg" in m
                    for m in errors)
         assert any("parameter m cannot be set after initialization: 300.0 refused, it stays "
                    "150.0" in m for m in errors)
-        assert any("input u = nan N is not finite" in m for s, m in fmu.messages
-                   if s == FMI2_DISCARD)
+        assert any("input u = nan N is not finite" in m for m in fmu.logged(FMI2_DISCARD))
         assert any("its parameters are invalid: parameter m = -1.0 kg" in m for m in errors)
         assert any("the state does not fit" in m and "nan" in m for m in errors)
     else:
         assert fmu.messages == []
-    fmu.close()
+    fmu.close(terminate=False)
 
 
 def test_a_wrong_guid_gives_no_instance(friction_plant_unzipped: Path) -> None:
     with pytest.raises(Exception, match="Failed to instantiate"):
-        Native(friction_plant_unzipped, guid="{00000000-0000-0000-0000-000000000000}")
+        FmuInstance(friction_plant_unzipped, "plant", guid="{00000000-0000-0000-0000-000000000000}")
 
 
 # --- the binaries ------------------------------------------------------------------------------

@@ -19,6 +19,7 @@ import random
 from pathlib import Path
 
 import pytest
+from harness import DEVIATIONS, table_1
 
 from papwc.master.native_plant import (
     FpParams,
@@ -37,18 +38,12 @@ T = 0.01
 #: The deviations of scenarios/realism.toml, and all of them that combine.
 CASES = {
     "exact": {},
-    "stribeck": {"v_s": 1e-3},
-    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
-    "ripple": {"ripple": 0.1, "ripple_period": 1e-3},
-    "stiction": {"f_s_spread": 0.1, "seed": 3},
-    "lag": {"tau_u": 2e-3},
-    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
-    "noise": {"noise_std": 2e-7, "x_resolution": 1e-7, "seed": 2},
+    **DEVIATIONS,
     "all": {"v_s": 1e-3, "ripple": 0.1, "ripple_period": 1e-3, "f_s_spread": 0.1, "seed": 5,
             "tau_u": 2e-3, "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3,
             "noise_std": 2e-7, "x_resolution": 1e-7},
 }
-PLANT = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+PLANT = table_1()
 
 
 @pytest.fixture(scope="module")

@@ -24,11 +24,11 @@ from fmpy.fmi1 import FMICallException
 from harness import FMI2_DISCARD, FMI2_ERROR, FmuInstance
 
 #: Parameters tried at their bounds, per FMU (their bounds meet no rule between parameters
-#: at the other start values). ``*_computed = false`` so that the Real is read.
+#: at the other start values). ``<name>_given = true`` so that the Real is read.
 PLANT_SAMPLE = ("m", "c", "ripple", "ripple_phase", "sigma_1", "tau_u")
 CONTROLLER_SAMPLE = ("K_c", "lambda_2", "floor_raise", "k_p", "k_d", "x_ref_offset", "f_mode",
                      "T")
-READ_WITH = {"k_p": {"k_p_computed": False}, "k_d": {"k_d_computed": False}}
+READ_WITH = {"k_p": {"k_p_given": True}, "k_d": {"k_d_given": True}}
 
 
 @pytest.fixture(params=["native", "pythonfmu", "controller"])

@@ -138,8 +138,10 @@ def test_ssd_is_valid_ssp_and_binds_the_scenario(closed_loop_ssp: Path, paper) -
                          for k, v in expected[name].items()}  # fmt: skip
     assert expected["controller"]["kind_code"] == 2  # "papwc"
     assert expected["controller"]["t_p_max"] == 0.03
+    assert expected["controller"]["t_p_max_given"] is True  # a bound: t_p_max is read
     assert expected["controller"]["x_ref_offset"] == 0.01 and expected["controller"]["T"] == 0.01
-    assert expected["controller"]["k_p"] == -1.0  # None: the default gain
+    # None: the default gain, selected by the FMU's start values (k_p_given = false)
+    assert "k_p" not in expected["controller"] and "k_p_given" not in expected["controller"]
     with zipfile.ZipFile(closed_loop_ssp) as archive:
         ssd_text = archive.read("SystemStructure.ssd").decode()
     assert '<ssd:DefaultExperiment startTime="0.0" stopTime="2.0">' in ssd_text

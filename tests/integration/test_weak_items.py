@@ -14,25 +14,17 @@ import time
 from pathlib import Path
 
 import pytest
-from harness import GOOD
+from harness import GOOD, PAPWC_PAPER, scenario_toml
 
 from papwc.cli import main
 
 PROJECT = Path(__file__).resolve().parents[2]
-BATTERY = """\
-name = "sig"
-[maneuver]
-x_ref = 0.01
-T = 0.01
-duration = 30.0
-iterations = 20
-[[controller]]
-kind = "papwc"
-t_p_max = 0.03
-K_c = 0.8
+BATTERY = scenario_toml("sig", maneuver={"x_ref": 0.01, "T": 0.01, "duration": 30.0,
+                                          "iterations": 20},
+                        controllers=[PAPWC_PAPER], tail="""\
 [sweep]
 "plant.m" = [100.0, 110.0, 120.0, 130.0, 140.0, 150.0, 160.0, 170.0]
-"""
+""")
 
 
 def test_the_resume_line_keeps_the_limits_it_needs(tmp_path, friction_plant_fmu, capsys,

@@ -24,13 +24,13 @@ boundary (every rule of PLANT_CONSTRAINTS is reached), and the rules' data in
 from __future__ import annotations
 
 import math
-import random
 import re
 import sys
 from pathlib import Path
 from typing import Any
 
 import pytest
+from harness import random_forces
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -367,27 +367,12 @@ REALISM = {
 }
 
 
-def realism_forces(seed: int, n: int) -> list[float]:
-    """Zero-order-hold forces (N): pulses above f_s, rests, forces below breakaway."""
-    rng = random.Random(seed)
-    out: list[float] = []
-    while len(out) < n:
-        kind = rng.random()
-        if kind < 0.3:
-            out += [rng.choice((-1.0, 1.0)) * rng.uniform(140.0, 300.0)] * rng.randint(1, 4)
-        elif kind < 0.65:
-            out += [0.0] * rng.randint(1, 8)
-        else:
-            out += [rng.uniform(-130.0, 130.0)] * rng.randint(1, 5)
-    return out[:n]
-
-
 @pytest.mark.parametrize("case", sorted(REALISM))
 def test_realism_run_is_the_model_layer_bit_for_bit(native: NativeLibrary, case: str) -> None:
     """A long run per deviation that sticks, breaks away and slides many times."""
     params = REALISM[case]
     n = 150
-    steps = [(u, 0.01) for u in realism_forces(len(case), n)]
+    steps = [(u, 0.01) for u in random_forces(len(case), n)]
     run_both(native, params, steps, n // 2)
     plant = NativePlant(native, params)
     stuck = moved = 0

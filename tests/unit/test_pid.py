@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from harness import TABLE_1
+from harness import DEVIATIONS, TABLE_1, run_on_physics, table_1
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -20,7 +20,6 @@ from papwc.controllers.pid import (
     trapezoid,
 )
 from papwc.controllers.settings import ControllerSettings
-from papwc.master import Maneuver, PhysicsSlave, run_controller
 from papwc.model.controller_settings import OUTCOME_REASONS
 from papwc.results.pulses import pulses_of
 from papwc.results.summary import summarize
@@ -34,11 +33,7 @@ def _settings(**kw) -> ControllerSettings:
 
 
 def _run(plant: dict, settings: ControllerSettings, **maneuver):
-    slave = PhysicsSlave()
-    slave.set_start_values(plant)
-    result = run_controller(slave, settings, Maneuver(**{"iterations": 2, **maneuver}))
-    assert not result.error
-    return result
+    return run_on_physics(plant, settings, **{"iterations": 2, **maneuver})
 
 
 def test_default_gains_are_the_coarse_loops_at_the_papers_T_and_scale_with_T():
@@ -167,21 +162,14 @@ def test_a_hunting_pid_stops_at_a_rest_nearer_than_it_started():
     assert within.outcome == Outcome.SETTLED
 
 
-DEVIATIONS = {
-    "stribeck": {"v_s": 1e-3},
-    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
-    "ripple": {"ripple": 0.1, "ripple_period": 1e-3},
-    "stiction": {"f_s_spread": 0.1, "seed": 3},
-    "lag": {"tau_u": 2e-3},
-    "noise": {"noise_std": 2e-7, "x_resolution": 1e-7, "seed": 2},
-}
+RIGID_DEVIATIONS = {name: plant for name, plant in DEVIATIONS.items() if name != "flexible"}
 
 
 @pytest.mark.parametrize("T", [0.01, 0.001])
-@pytest.mark.parametrize("case", list(DEVIATIONS))
+@pytest.mark.parametrize("case", list(RIGID_DEVIATIONS))
 def test_no_maneuver_ends_farther_and_none_is_falsely_settled(case, T):
     for x_ref in (1e-3, 5e-5):
-        result = _run({**TABLE_1, **DEVIATIONS[case]}, _settings(), x_ref=x_ref, T=T)
+        result = _run(table_1(**RIGID_DEVIATIONS[case]), _settings(), x_ref=x_ref, T=T)
         for trace in result.traces:
             x = trace.columns["x"]
             assert abs(x_ref - x[-1]) <= abs(x_ref - x[0]), (case, x_ref, trace.iteration)

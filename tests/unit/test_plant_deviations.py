@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from harness import random_forces
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import stats
@@ -68,21 +69,6 @@ CASES = {
     "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
             "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
 }
-
-
-def random_forces(seed: int, n: int) -> list[float]:
-    """Zero-order-hold forces (N): pulses above f_s, rests, forces below breakaway."""
-    rng = random.Random(seed)
-    out: list[float] = []
-    while len(out) < n:
-        kind = rng.random()
-        if kind < 0.3:
-            out += [rng.choice((-1.0, 1.0)) * rng.uniform(140.0, 300.0)] * rng.randint(1, 4)
-        elif kind < 0.65:
-            out += [0.0] * rng.randint(1, 8)
-        else:
-            out += [rng.uniform(-130.0, 130.0)] * rng.randint(1, 5)
-    return out[:n]
 
 
 # --- the defaults are Eq. (1) -------------------------------------------------------------------

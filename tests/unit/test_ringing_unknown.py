@@ -9,37 +9,35 @@ that moved 1031 um (2.2 times the runaway bound) and PAPWC one that moved 1.5 ti
 from __future__ import annotations
 
 import pytest
+from harness import run_on_physics, table_1
 
 from papwc.controllers import make_controller
 from papwc.controllers.rest import RING_LEG
 from papwc.controllers.settings import ControllerSettings
-from papwc.master import Maneuver, PhysicsSlave, run_controller
+from papwc.master import PhysicsSlave
 from papwc.results.pulses import pulse_ratio
-from papwc.studies.ring_scan import mc_rigid, realism_rigid, ringing_runs
+from papwc.studies.ring_scan import SETTINGS, mc_rigid, realism_rigid, ringing_runs
 
 T = 0.01
-RIGID = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+RIGID = table_1()
 #: Mode while the table sticks: sqrt(k_t/m_d)/(2*pi); c_t for 2 % damping.
 TABLE_15HZ = {**RIGID, "m": 100.0, "m_d": 50.0, "k_t": 4.441e5, "c_t": 188.5}
 TABLE_20HZ = {**RIGID, "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3}
-#: The controllers of scenarios/realism.toml.
-SETTINGS = {
-    "pwc": {"kind": "pwc", "f_p_max": 300.0, "t_p_max": 0.03, "K_c": 0.5, "tolerance": 0.0,
-            "m_est": 150.0, "f_c_est": 80.0, "F_inv0": 1e-5},
-    "papwc": {"kind": "papwc", "f_p_max": 300.0, "t_p_max": 0.03, "K_c": 0.8,
-              "tolerance": 2e-5, "m_est": 150.0, "f_c_est": 80.0, "delta_inv": 1e-5},
-    "exact": {"kind": "exact", "f_p_max": 300.0, "tolerance": 1e-7, "m_est": 150.0,
-              "f_c_est": 80.0},
-}
+
+
+def _forces(slave: PhysicsSlave, ctl, x_ref: float, ks, u: float = 0.0):
+    """For each sample k of ``ks``: the plant steps over [k*T, (k+1)*T] with the force held,
+    then the controller samples it; yields the controller's new force (N)."""
+    for k in ks:
+        slave.u = u
+        slave.do_step(k * T, T)
+        u = ctl.update(k * T, slave.plant.x_meas(), x_ref)
+        yield u
 
 
 def _run(plant: dict, kind: str, x_ref: float, **settings):
-    slave = PhysicsSlave()
-    slave.set_start_values(plant)
     s = ControllerSettings.from_mapping({**SETTINGS[kind], **settings})
-    result = run_controller(slave, s, Maneuver(x_ref=x_ref, T=T, duration=2.0, iterations=3))
-    assert not result.error
-    return result
+    return run_on_physics(plant, s, x_ref=x_ref, T=T, duration=2.0, iterations=3)
 
 
 @pytest.mark.slow
@@ -66,10 +64,8 @@ def test_ringing_is_seen_and_shrinks_the_pulses(kind):
     slave.set_start_values(TABLE_15HZ)
     slave.initialize()
     u = 0.0
-    for k in range(200):
-        slave.u = u
-        slave.do_step(k * T, T)
-        u = ctl.update(k * T, slave.plant.x_meas(), 1e-3)
+    for force in _forces(slave, ctl, 1e-3, range(200)):
+        u = force  # held on below
         if ctl.trust.ring:
             break
     assert ctl.trust.ring and ctl.rest.ring_dwell >= 5
@@ -79,11 +75,8 @@ def test_ringing_is_seen_and_shrinks_the_pulses(kind):
     assert state["rest.ring_dwell"] == ctl.rest.ring_dwell and state["trust.ring"] == 1
     # later pulses: one sample each
     widths, n = [], 0
-    for k in range(200, 400):
-        slave.u = u
-        slave.do_step(k * T, T)
-        u = ctl.update(k * T, slave.plant.x_meas(), 1e-3)
-        if u != 0.0:
+    for force in _forces(slave, ctl, 1e-3, range(200, 400), u):
+        if force != 0.0:
             n += 1
         elif n:
             widths.append(n)
@@ -108,10 +101,7 @@ def test_a_rigid_table_is_never_seen_ringing(plant):
         u = 0.0
         for x_ref in (1e-3, 5e-5):
             ctl.reset()
-            for k in range(200):
-                slave.u = u
-                slave.do_step(k * T, T)
-                u = ctl.update(k * T, slave.plant.x_meas(), x_ref)
+            u = list(_forces(slave, ctl, x_ref, range(200), u))[-1]
         assert not ctl.trust.ring and ctl.rest.ring_dwell == 0, kind
 
 
@@ -122,11 +112,7 @@ def test_a_told_mode_is_not_looked_for():
     slave = PhysicsSlave()
     slave.set_start_values(TABLE_15HZ)
     slave.initialize()
-    u = 0.0
-    for k in range(200):
-        slave.u = u
-        slave.do_step(k * T, T)
-        u = ctl.update(k * T, slave.plant.x_meas(), 1e-3)
+    list(_forces(slave, ctl, 1e-3, range(200)))
     assert not ctl.trust.ring and ctl.rest.ring_dwell == 0
 
 

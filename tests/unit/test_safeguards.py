@@ -10,7 +10,7 @@ import dataclasses
 import math
 
 import pytest
-from harness import TABLE_1
+from harness import TABLE_1, run_on_physics, table_1
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -30,7 +30,7 @@ from papwc.controllers.base import (
 )
 from papwc.controllers.sequencer import PulseSequencer
 from papwc.controllers.settings import ControllerSettings
-from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration
+from papwc.master import Maneuver, PhysicsSlave, run_iteration
 from papwc.master.slave import ControllerSlave
 from papwc.model.controller_settings import (
     CONTROLLER_OUTPUTS,
@@ -60,12 +60,7 @@ def _settings(kind: str, **kw) -> ControllerSettings:
 
 
 def _run(plant: dict, settings: ControllerSettings, **maneuver):
-    slave = PhysicsSlave()
-    slave.set_start_values(plant)
-    man = Maneuver(**{"iterations": 3, **maneuver})
-    result = run_controller(slave, settings, man)
-    assert not result.error
-    return result
+    return run_on_physics(plant, settings, **{"iterations": 3, **maneuver})
 
 
 # -- rest detection on real signals ----------------------------------------------------------
@@ -263,8 +258,7 @@ def test_noise_weights_the_fit_and_marks_what_did_not_move():
 
 
 # -- a ringing table -------------------------------------------------------------------------
-FLEXIBLE = {"m": 100.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0, "m_d": 50.0, "k_t": 7.896e5,
-            "c_t": 251.3}
+FLEXIBLE = table_1(m=100.0, m_d=50.0, k_t=7.896e5, c_t=251.3)
 
 
 def test_a_known_mode_lengthens_the_dwell_and_caps_the_trust():

@@ -221,15 +221,15 @@ class CheckedSlave(Fmi2Slave):
         return [v for v in self.VARIABLES if v.causality == "parameter"]
 
     def parameter_values(self) -> dict[str, Any]:
-        """The parameters as the model layer reads them: a Real whose switch is true takes
-        the value the switch selects (None: computed; inf), the switches left out."""
+        """The parameters as the model layer reads them: a Real whose switch ``<name>_given``
+        is false takes its default (None: computed; inf), the switches left out."""
         params = self._parameters()
         return switched_values(params, {v.name: getattr(self, v.name) for v in params})
 
     def check(self) -> list[str]:
         """One message per invalid parameter (override to add checks of a model's own)."""
         params = self._parameters()
-        switches = {v.name: f"{v.switch} = true selects "
+        switches = {v.name: f"{v.switch} = false selects "
                     + ("the default" if v.optional else "no bound") for v in params if v.switch}
         raw = {v.name: getattr(self, v.name) for v in params}
         found = switch_conflicts(params, raw)

@@ -31,7 +31,7 @@ def _start(var: Variable) -> str:
     if var.causality == "output" and var.initial == "calculated":
         return "calculated"
     if var.switch:
-        return f"{xml_number(var.fmi_start)} (not read while `{var.switch}`)"
+        return f"{xml_number(var.fmi_start)} (read only if `{var.switch}`)"
     return xml_number(var.fmi_start)
 
 
@@ -44,7 +44,7 @@ def variable_table(variables: Sequence[Variable]) -> str:
         if var.name == "kind" and var.type == "String":
             allowed = ", ".join(repr(k) for k in sorted(CONTROLLER_KINDS))
         if var.switch:
-            allowed += (f"; `{var.switch}` = true selects "
+            allowed += (f"; `{var.switch}` = false selects "
                         + ("the default" if var.optional else "no bound"))
         kinds = f" (kinds: {', '.join(var.kinds)})" if var.kinds else ""
         unit = var.unit if var.unit not in ("", "1") else "–"

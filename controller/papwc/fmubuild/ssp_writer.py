@@ -159,8 +159,8 @@ def closed_loop_parameters(
         ``{"plant": {...}, "controller": {...}}``: variable name -> value, in SI
         units, for the settings the controller's kind reads
         (:func:`papwc.model.controller_settings.fmu_parameters`: a ``None`` setting
-        sets its Boolean ``<name>_computed`` true, an infinite ``t_p_max`` sets
-        ``t_p_max_unbounded`` true, and the Real is then left out). The kind is
+        and an infinite ``t_p_max`` are left out, the FMU's start values select them;
+        a given one binds the Real and its Boolean ``<name>_given`` true). The kind is
         given as the Integer ``kind_code`` (fmpy and OMSimulator cannot set
         Strings), the reference as the parameter ``x_ref_offset``.
     """

@@ -317,9 +317,9 @@ CONTROLLER_OUTPUTS: tuple[Variable, ...] = (
 )
 
 
-#: Boolean parameters of PulseController.fmu, true by default: ``<name>_computed`` selects
-#: the computed default of an optional setting (``None`` in a scenario), ``t_p_max_unbounded``
-#: no bound on the pulse width (``inf``); the Real beside it is then not read. (A value the
+#: Boolean parameters ``<name>_given`` of PulseController.fmu, false by default: the computed
+#: default of an optional setting (``None`` in a scenario) or no bound on the pulse width
+#: (``t_p_max = inf``), the Real beside it not read; true, the Real is used. (A value the
 #: Real cannot hold, as -1 for "computed", would be one a host's range check cannot tell from
 #: a wrong value.)
 CONTROLLER_SWITCHES: tuple[Variable, ...] = switch_variables(CONTROLLER_SETTINGS)
@@ -336,9 +336,9 @@ def fmu_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
     """PulseController.fmu parameters for settings ``values`` (scenario-file names).
 
     A setting at the default a Real cannot hold (``None``: computed; ``inf``: no
-    bound) sets its switch true and leaves the Real at its start value; any other
-    value of such a setting sets the Real and its switch false. Other settings are
-    passed as they are.
+    bound) is left out (its switch ``<name>_given`` and the Real keep their start
+    values, which select that default); any other value of such a setting sets the
+    Real and its switch true. Other settings are passed as they are.
     """
     out: dict[str, Any] = {}
     for var in CONTROLLER_SETTINGS:
@@ -347,11 +347,9 @@ def fmu_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
         value = values[var.name]
         if not var.switch:
             out[var.name] = value
-        elif value is None or value == var.switched_value:
-            out[var.switch] = True
-        else:
+        elif value is not None and value != var.switched_value:
             out[var.name] = value
-            out[var.switch] = False
+            out[var.switch] = True
     return out
 
 

@@ -63,14 +63,14 @@ class Variable:
         Nominal magnitude (model description), where it helps a tool scale.
     inf_ok : bool
         ``+inf`` is allowed (e.g. no bound on the pulse width); in an FMU the
-        Boolean :attr:`switch` ``<name>_unbounded`` selects it.
+        Boolean :attr:`switch` ``<name>_given`` (false) selects it.
     optional : bool
         ``None`` is allowed and selects a computed default; in an FMU the
-        Boolean :attr:`switch` ``<name>_computed`` selects it.
+        Boolean :attr:`switch` ``<name>_given`` (false) selects it.
     fmi_default : float or None
-        Start value in an FMU of a Real whose default (``None`` or ``inf``) is
-        selected by its switch: a value in range that the switch leaves unread
-        (the computed default at the other settings' defaults, or ``max``).
+        Start value in an FMU of a Real whose default (``None`` or ``inf``) its
+        switch selects: a value in range that is not read while the switch is
+        false (the computed default at the other settings' defaults, or ``max``).
     choices : tuple of str
         Allowed values of a String.
     note : str
@@ -130,14 +130,10 @@ class Variable:
 
     @property
     def switch(self) -> str:
-        """Name of the FMU's Boolean that, when true, selects the default this Real cannot
-        hold (``<name>_computed`` of an optional setting, ``<name>_unbounded`` of one that
-        may be inf); empty for the others."""
-        if self.optional:
-            return f"{self.name}_computed"
-        if self.inf_ok:
-            return f"{self.name}_unbounded"
-        return ""
+        """Name of the FMU's Boolean ``<name>_given`` of a Real whose default it cannot
+        hold (``None``: computed; ``inf``): true, the Real is read; false (its start), the
+        default. Empty for the others."""
+        return f"{self.name}_given" if self.optional or self.inf_ok else ""
 
     @property
     def switched_value(self) -> Any:
@@ -286,61 +282,63 @@ def _num(x: float) -> str:
 
 
 def switch_variables(variables: Iterable[Variable]) -> tuple[Variable, ...]:
-    """The FMU's Boolean switches of ``variables`` (one per variable with a :attr:`switch`).
+    """The FMU's Boolean switches ``<name>_given`` of ``variables`` (one per variable with
+    a :attr:`~Variable.switch`).
 
-    A switch is true by default: the Real is then not read, and the setting takes
-    its computed default (``<name>_computed``) or no bound (``<name>_unbounded``).
+    A switch is false by default: the Real is then not read, and the setting takes
+    its computed default (``None``) or no bound (``inf``); true, the Real is read.
     Every value a host's range check accepts for the Real is thus one the FMU
-    accepts; a sentinel outside the range (as -1 for "computed") would let a
-    host accept -0.5 too.
+    accepts (a sentinel outside the range, as -1 for "computed", would let a host
+    accept -0.5 too). Only a switch that is true need be set, so a host that
+    cannot set a Boolean false (fmpy's SSP runner sets every Boolean it is given
+    true) still runs a file that binds them.
     """
     out = []
     for var in variables:
         if not var.switch:
             continue
-        if var.optional:
-            what = f"{var.name} is computed (its default; {var.name} is not read)"
-        else:
-            what = f"{var.name} is inf, no bound ({var.name} is not read)"
-        out.append(Variable(var.switch, f"True: {what}; false: the parameter {var.name} is "
-                            "used", "", True, type="Boolean", kinds=var.kinds))
+        default = ("it is computed (its default)" if var.optional
+                   else "it is inf (no bound, its default)")
+        out.append(Variable(var.switch, f"True: the parameter {var.name} is used; false: "
+                            f"{default} and the parameter {var.name} is not read", "", False,
+                            type="Boolean", kinds=var.kinds))
     return tuple(out)
 
 
 def switched_values(variables: Iterable[Variable], values: Mapping[str, Any]) -> dict[str, Any]:
     """``values`` of an FMU's parameters as the model layer reads them.
 
-    A variable whose switch is true takes the value the switch selects (``None``
-    or ``inf``); the switches themselves are left out. Names not in
-    ``variables`` are kept as they are.
+    A variable whose switch is false takes its default (``None`` or ``inf``); the
+    switches themselves are left out. Names not in ``variables`` are kept as they
+    are.
     """
     variables = list(variables)
     switches = {v.switch for v in variables if v.switch}
     out = {name: value for name, value in values.items() if name not in switches}
     for var in variables:
-        if var.switch and values.get(var.switch) and var.name in out:
+        if var.switch and not values.get(var.switch) and var.name in out:
             out[var.name] = var.switched_value
     return out
 
 
 def switch_conflicts(variables: Iterable[Variable],
                      values: Mapping[str, Any]) -> list[tuple[str, str]]:
-    """``(name, message)`` for each Real set away from its start while its switch is true.
+    """``(name, message)`` for each Real set away from its start while its switch is false.
 
     The Real is not read then, so a value set on it would be ignored: it is refused
     instead, with what to do.
     """
     out = []
     for var in variables:
-        if not var.switch or not values.get(var.switch) or var.name not in values:
+        if not var.switch or values.get(var.switch) or var.name not in values:
             continue
         value = values[var.name]
         if value == var.fmi_start or value == var.switched_value:
             continue
         what = "computed" if var.optional else "inf (no bound)"
         out.append((var.name, f"{var.name} = {describe_value(value)}{var._value_unit(value)} "
-                    f"is not read while {var.switch} = true ({var.name} is {what}): set "
-                    f"{var.switch} = false to use it, or leave {var.name} at its start value "
+                    f"is not read while {var.switch} = false ({var.name} is {what}): set "
+                    f"{var.switch} = true to use it, or leave {var.name} at its start value "
                     f"{describe_value(var.fmi_start)}"))
     return out
 
