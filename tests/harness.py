@@ -58,6 +58,22 @@ DEVIATIONS = {
 }
 
 
+#: Each deviation at the values of scenarios/realism.toml and at variants of them (a Stribeck
+#: exponent of 1, a light LuGre with ripple, ripple with a phase), and all that combine.
+REALISM_VARIANTS = {
+    "stribeck": {"v_s": 1e-3},
+    "stribeck_delta1": {"v_s": 2e-3, "delta_s": 1.0},
+    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
+    "lugre_light": {"sigma_0": 6.5e6, "sigma_1": 1e4, "v_s": 1e-3, "ripple": 0.1},
+    "ripple": {"ripple": 0.1, "ripple_period": 1e-3, "ripple_phase": 0.3},
+    "stiction": {"f_s_spread": 0.1, "seed": 3},
+    "lag": {"tau_u": 2e-3},
+    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
+    "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
+            "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
+}
+
+
 def table_1(**changes: Any) -> dict[str, Any]:
     """The plant of Table 1 with ``changes`` (other values, deviations of a real machine)."""
     return {**TABLE_1, **changes}
@@ -74,28 +90,44 @@ def run_on_physics(plant: Mapping[str, Any], settings: Any, **maneuver: Any) -> 
     return result
 
 def toml_value(value: Any) -> str:
-    """A value as a scenario file writes it (TOML)."""
+    """A value as a scenario file writes it (TOML; a mapping as an inline table)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):
         return json.dumps(value)
     if isinstance(value, float) and math.isinf(value):
         return "inf" if value > 0 else "-inf"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
+    if isinstance(value, Mapping):
+        return "{ " + ", ".join(_toml_pairs(value)) + " }"
     return repr(value)
+
+
+def _toml_pairs(values: Mapping[str, Any]) -> list[str]:
+    """``key = value`` for each entry (a key with a dot, as ``"plant.m"``, quoted)."""
+    return [f"{k if k.replace('_', '').isalnum() else json.dumps(k)} = {toml_value(v)}"
+            for k, v in values.items()]
 
 
 def scenario_toml(name: str, *, plant: Mapping[str, Any] | None = None,
                   maneuver: Mapping[str, Any] | None = None,
-                  controllers: Sequence[Mapping[str, Any]] = (), tail: str = "") -> str:
-    """The text of a scenario (or battery) file: ``name``, the ``[plant]`` and
-    ``[maneuver]`` tables (left out when None), one ``[[controller]]`` table per mapping
-    of ``controllers``, then ``tail`` as it is (a battery's ``[sweep]``, ``[monte_carlo]``)."""
+                  controllers: Sequence[Mapping[str, Any]] = (),
+                  tables: Mapping[str, Mapping[str, Any]] | None = None,
+                  tail: str = "") -> str:
+    """The text of a scenario (or battery) file.
+
+    ``name``; the ``[plant]`` and ``[maneuver]`` tables (left out when None); one
+    ``[[controller]]`` table per mapping of ``controllers``; each of ``tables`` (a
+    battery's ``sweep``, ``monte_carlo``, ``battery``) by its name; then ``tail``
+    as it is.
+    """
     lines = [f"name = {toml_value(name)}"]
-    for table, values in (("[plant]", plant), ("[maneuver]", maneuver)):
+    for table, values in (("plant", plant), ("maneuver", maneuver), *(tables or {}).items()):
         if values is not None:
-            lines += [table, *(f"{k} = {toml_value(v)}" for k, v in values.items())]
+            lines += [f"[{table}]", *_toml_pairs(values)]
     for controller in controllers:
-        lines += ["[[controller]]", *(f"{k} = {toml_value(v)}" for k, v in controller.items())]
+        lines += ["[[controller]]", *_toml_pairs(controller)]
     return "\n".join(lines) + "\n" + tail
 
 

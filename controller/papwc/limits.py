@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import re
 from collections.abc import Callable
 from pathlib import Path
@@ -26,6 +27,7 @@ __all__ = [
     "NAME_PATTERN",
     "check_name",
     "check_steps",
+    "read_input_text",
     "whole_number",
     "safe_name",
     "scenario_steps",
@@ -109,6 +111,56 @@ def input_path_problem(path: Path) -> str | None:
     if not path.is_file():
         return "is not a regular file (a FIFO, device or socket)"
     return None
+
+
+def read_input_text(path: str | os.PathLike, what: str, form: str, error: type[Exception],
+                    too_large: str = "", encoding: str = "utf-8") -> str:
+    """The text of the input file at ``path`` (a scenario, a battery, a log).
+
+    Parameters
+    ----------
+    path : path
+        The file.
+    what : str
+        What it is, in messages (``"scenario"``: "no such scenario file").
+    form : str
+        Its format, in messages (``"TOML"``, ``"CSV"``).
+    error : type
+        The exception raised, with one message naming the file and the problem.
+    too_large : str
+        What a file larger than :data:`MAX_INPUT_BYTES` is told besides its size
+        (default: that it is not a ``what`` file).
+    encoding : str
+        ``"utf-8"``, or ``"utf-8-sig"`` to drop a byte-order mark.
+
+    Raises
+    ------
+    error
+        Missing, a folder, a FIFO or device, unreadable, larger than
+        :data:`MAX_INPUT_BYTES`, binary (a NUL byte) or not UTF-8.
+    """
+    problem = input_path_problem(Path(path))
+    if problem == "no such file":
+        raise error(f"{path}: no such {what} file")
+    if problem is not None:
+        raise error(f"{path}: {problem}; give a {what} file ({form})")
+    try:
+        with open(path, "rb") as f:
+            raw = f.read(MAX_INPUT_BYTES + 1)
+    except OSError as exc:
+        raise error(f"{path}: cannot read the {what} file: {exc.strerror or exc}") from None
+    if len(raw) > MAX_INPUT_BYTES:
+        raise error(f"{path}: larger than {MAX_INPUT_BYTES // (1024 * 1024)} MB; "
+                    + (too_large or f"not a {what} file"))
+    if b"\0" in raw:
+        raise error(f"{path}: a binary file (it holds NUL bytes), not a {what} file "
+                    f"({form} text)")
+    try:
+        return raw.decode(encoding)
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise error(f"{path}: not UTF-8 text: byte 0x{raw[exc.start]:02x} at line {line} "
+                    f"(offset {exc.start}); save the {what} file as UTF-8") from None
 
 
 def whole_number(low: int, high: int | None = None) -> Callable[[str], int]:

@@ -37,7 +37,7 @@ from typing import Any
 from papwc.controllers import CONTROLLER_KINDS
 from papwc.controllers.settings import ControllerSettings, settings_for_kind
 from papwc.errors import ScenarioError
-from papwc.limits import MAX_INPUT_BYTES, check_name, input_path_problem, safe_name
+from papwc.limits import check_name, read_input_text, safe_name
 from papwc.master.closed_loop import Maneuver
 from papwc.model.controller_settings import CONTROLLER_SETTINGS, settings_problems
 from papwc.model.maneuver import MANEUVER_DEFAULTS, MANEUVER_VARIABLES, maneuver_problems
@@ -115,30 +115,7 @@ def read_toml(path: str | os.PathLike, what: str = "scenario") -> dict:
         :data:`~papwc.limits.MAX_INPUT_BYTES`, binary (a NUL byte), not UTF-8,
         not readable, or not valid TOML.
     """
-    problem = input_path_problem(Path(path))
-    if problem == "no such file":
-        raise ScenarioError(f"{path}: no such {what} file")
-    if problem is not None:
-        raise ScenarioError(f"{path}: {problem}; give a {what} file (TOML)")
-    try:
-        with open(path, "rb") as f:
-            raw = f.read(MAX_INPUT_BYTES + 1)
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read the {what} file: "
-                            f"{exc.strerror or exc}") from None
-    if len(raw) > MAX_INPUT_BYTES:
-        raise ScenarioError(f"{path}: larger than {MAX_INPUT_BYTES // (1024 * 1024)} MB; not a "
-                            f"{what} file")
-    if b"\0" in raw:
-        raise ScenarioError(f"{path}: a binary file (it holds NUL bytes), not a {what} file "
-                            "(TOML text)")
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        line = raw[:exc.start].count(b"\n") + 1
-        raise ScenarioError(f"{path}: not UTF-8 text: byte 0x{raw[exc.start]:02x} at line "
-                            f"{line} (offset {exc.start}); save the {what} file as UTF-8"
-                            ) from None
+    text = read_input_text(path, what, "TOML", ScenarioError)
     try:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:

@@ -53,18 +53,16 @@ class PulseController(CheckedSlave):
     the controller be observed.
     """
 
-    author = "papwc"
-    license = "BSD-2-Clause"
-    description = (
-        "Adaptive pulse controller for positioning a mass with stick-slip friction "
-        "(PWC, PAPWC or exact; or the PID baseline, kind pid): at each communication step of "
-        "size T it reads the measured "
-        "position and the reference and sets the force to hold over the next sample"
-    )
-    default_experiment = DefaultExperiment(start_time=0.0, stop_time=1.0, step_size=0.01)
     VARIABLES = PULSE_CONTROLLER_VARIABLES
     CONSTRAINTS = CONTROLLER_CONSTRAINTS
     STATE = ("_controller", "_maneuver_seen", "_kind_set")
+    description = (
+        "Adaptive pulse controller for positioning a mass with stick-slip friction (PWC, PAPWC "
+        "or exact; or the PID baseline, kind pid): at each communication step of size T it "
+        "reads the measured position and the reference and sets the force to hold over the "
+        "next sample"
+    )
+    default_experiment = DefaultExperiment(start_time=0.0, stop_time=1.0, step_size=0.01)
 
     def __init__(self, **kwargs: Any) -> None:
         #: The controller, created when initialization ends with valid parameters.

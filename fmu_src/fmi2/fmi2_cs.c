@@ -402,37 +402,28 @@ static fmi2Status check_get(const Instance *inst, const char *function,
     return fmi2OK;
 }
 
-fmi2Status fmi2GetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       fmi2Real value[]) {
-    size_t i;
-    INSTANCE_OR_ERROR(c);
-    if (check_get(inst, "fmi2GetReal", vr, nvr, value, MODEL_REAL) != fmi2OK) return fmi2Error;
-    for (i = 0; i < nvr; i++) value[i] = model_get_real(inst->model, vr[i]);
-    return fmi2OK;
+/* The model's Boolean as an fmi2Boolean. */
+static fmi2Boolean get_boolean(const void *model, fmi2ValueReference vr) {
+    return model_get_boolean(model, vr) ? fmi2True : fmi2False;
 }
 
-fmi2Status fmi2GetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          fmi2Integer value[]) {
-    size_t i;
-    INSTANCE_OR_ERROR(c);
-    if (check_get(inst, "fmi2GetInteger", vr, nvr, value, MODEL_INTEGER) != fmi2OK) {
-        return fmi2Error;
+/* fmi2Get<Type>: every value reference checked (nothing read if one is refused), then each
+ * value read from the model by read(model, vr). */
+#define GET_VALUES(function, type, model_type, read) \
+    fmi2Status function(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, \
+                        type value[]) { \
+        size_t i; \
+        INSTANCE_OR_ERROR(c); \
+        if (check_get(inst, #function, vr, nvr, value, model_type) != fmi2OK) { \
+            return fmi2Error; \
+        } \
+        for (i = 0; i < nvr; i++) value[i] = read(inst->model, vr[i]); \
+        return fmi2OK; \
     }
-    for (i = 0; i < nvr; i++) value[i] = model_get_integer(inst->model, vr[i]);
-    return fmi2OK;
-}
 
-fmi2Status fmi2GetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          fmi2Boolean value[]) {
-    size_t i;
-    INSTANCE_OR_ERROR(c);
-    if (check_get(inst, "fmi2GetBoolean", vr, nvr, value, MODEL_BOOLEAN) != fmi2OK) {
-        return fmi2Error;
-    }
-    for (i = 0; i < nvr; i++) value[i] = model_get_boolean(inst->model, vr[i]) ? fmi2True
-                                                                               : fmi2False;
-    return fmi2OK;
-}
+GET_VALUES(fmi2GetReal, fmi2Real, MODEL_REAL, model_get_real)
+GET_VALUES(fmi2GetInteger, fmi2Integer, MODEL_INTEGER, model_get_integer)
+GET_VALUES(fmi2GetBoolean, fmi2Boolean, MODEL_BOOLEAN, get_boolean)
 
 fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                          fmi2String value[]) {
@@ -493,36 +484,28 @@ static fmi2Status check_set(const Instance *inst, const char *function,
     return fmi2OK;
 }
 
-fmi2Status fmi2SetReal(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                       const fmi2Real value[]) {
-    size_t i;
-    INSTANCE_OR_ERROR(c);
-    if (check_set(inst, "fmi2SetReal", vr, nvr, value, MODEL_REAL) != fmi2OK) return fmi2Error;
-    for (i = 0; i < nvr; i++) model_set_real(inst->model, vr[i], value[i]);
-    return fmi2OK;
+/* The fmi2Boolean given as the model's Boolean. */
+static void set_boolean(void *model, fmi2ValueReference vr, fmi2Boolean value) {
+    model_set_boolean(model, vr, value != fmi2False);
 }
 
-fmi2Status fmi2SetInteger(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Integer value[]) {
-    size_t i;
-    INSTANCE_OR_ERROR(c);
-    if (check_set(inst, "fmi2SetInteger", vr, nvr, value, MODEL_INTEGER) != fmi2OK) {
-        return fmi2Error;
+/* fmi2Set<Type>: every value checked (nothing set if one is refused), then each set in the
+ * model by write(model, vr, value). */
+#define SET_VALUES(function, type, model_type, write) \
+    fmi2Status function(fmi2Component c, const fmi2ValueReference vr[], size_t nvr, \
+                        const type value[]) { \
+        size_t i; \
+        INSTANCE_OR_ERROR(c); \
+        if (check_set(inst, #function, vr, nvr, value, model_type) != fmi2OK) { \
+            return fmi2Error; \
+        } \
+        for (i = 0; i < nvr; i++) write(inst->model, vr[i], value[i]); \
+        return fmi2OK; \
     }
-    for (i = 0; i < nvr; i++) model_set_integer(inst->model, vr[i], value[i]);
-    return fmi2OK;
-}
 
-fmi2Status fmi2SetBoolean(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                          const fmi2Boolean value[]) {
-    size_t i;
-    INSTANCE_OR_ERROR(c);
-    if (check_set(inst, "fmi2SetBoolean", vr, nvr, value, MODEL_BOOLEAN) != fmi2OK) {
-        return fmi2Error;
-    }
-    for (i = 0; i < nvr; i++) model_set_boolean(inst->model, vr[i], value[i] != fmi2False);
-    return fmi2OK;
-}
+SET_VALUES(fmi2SetReal, fmi2Real, MODEL_REAL, model_set_real)
+SET_VALUES(fmi2SetInteger, fmi2Integer, MODEL_INTEGER, model_set_integer)
+SET_VALUES(fmi2SetBoolean, fmi2Boolean, MODEL_BOOLEAN, set_boolean)
 
 fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
                          const fmi2String value[]) {
@@ -785,12 +768,17 @@ fmi2Status fmi2CancelStep(fmi2Component c) {
     return refuse(inst, fmi2Error, "fmi2CancelStep refused: doStep never runs asynchronously");
 }
 
-fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value) {
-    INSTANCE_OR_ERROR(c);
-    (void)s; (void)value;
-    return refuse(inst, fmi2Discard, "fmi2GetStatus: no status to give (doStep never runs "
-                  "asynchronously)");
-}
+/* A status function that gives nothing: refused with fmi2Discard and the reason. */
+#define NO_STATUS(function, type, reason) \
+    fmi2Status function(fmi2Component c, const fmi2StatusKind s, type *value) { \
+        INSTANCE_OR_ERROR(c); \
+        (void)s; (void)value; \
+        return refuse(inst, fmi2Discard, #function ": " reason); \
+    }
+
+NO_STATUS(fmi2GetStatus, fmi2Status, "no status to give (doStep never runs asynchronously)")
+NO_STATUS(fmi2GetIntegerStatus, fmi2Integer, "no integer status to give")
+NO_STATUS(fmi2GetStringStatus, fmi2String, "no string status to give")
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value) {
     INSTANCE_OR_ERROR(c);
@@ -799,12 +787,6 @@ fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *
         return fmi2OK;
     }
     return refuse(inst, fmi2Discard, "fmi2GetRealStatus: only fmi2LastSuccessfulTime is given");
-}
-
-fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value) {
-    INSTANCE_OR_ERROR(c);
-    (void)s; (void)value;
-    return refuse(inst, fmi2Discard, "fmi2GetIntegerStatus: no integer status to give");
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value) {
@@ -816,12 +798,6 @@ fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boo
         return fmi2OK;
     }
     return refuse(inst, fmi2Discard, "fmi2GetBooleanStatus: only fmi2Terminated is given");
-}
-
-fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value) {
-    INSTANCE_OR_ERROR(c);
-    (void)s; (void)value;
-    return refuse(inst, fmi2Discard, "fmi2GetStringStatus: no string status to give");
 }
 
 /* ---------------------------------------------------------------------------------------- */
@@ -854,27 +830,15 @@ fmi2Status fmi2SetTime(fmi2Component c, fmi2Real time) {
     NOT_MODEL_EXCHANGE("fmi2SetTime");
 }
 
-fmi2Status fmi2SetContinuousStates(fmi2Component c, const fmi2Real x[], size_t nx) {
-    (void)x; (void)nx;
-    NOT_MODEL_EXCHANGE("fmi2SetContinuousStates");
-}
+/* A Model Exchange function that takes an array of n values. */
+#define NOT_MODEL_EXCHANGE_ARRAY(function, type) \
+    fmi2Status function(fmi2Component c, type values[], size_t n) { \
+        (void)values; (void)n; \
+        NOT_MODEL_EXCHANGE(#function); \
+    }
 
-fmi2Status fmi2GetDerivatives(fmi2Component c, fmi2Real derivatives[], size_t nx) {
-    (void)derivatives; (void)nx;
-    NOT_MODEL_EXCHANGE("fmi2GetDerivatives");
-}
-
-fmi2Status fmi2GetEventIndicators(fmi2Component c, fmi2Real eventIndicators[], size_t ni) {
-    (void)eventIndicators; (void)ni;
-    NOT_MODEL_EXCHANGE("fmi2GetEventIndicators");
-}
-
-fmi2Status fmi2GetContinuousStates(fmi2Component c, fmi2Real x[], size_t nx) {
-    (void)x; (void)nx;
-    NOT_MODEL_EXCHANGE("fmi2GetContinuousStates");
-}
-
-fmi2Status fmi2GetNominalsOfContinuousStates(fmi2Component c, fmi2Real x_nominal[], size_t nx) {
-    (void)x_nominal; (void)nx;
-    NOT_MODEL_EXCHANGE("fmi2GetNominalsOfContinuousStates");
-}
+NOT_MODEL_EXCHANGE_ARRAY(fmi2SetContinuousStates, const fmi2Real)
+NOT_MODEL_EXCHANGE_ARRAY(fmi2GetDerivatives, fmi2Real)
+NOT_MODEL_EXCHANGE_ARRAY(fmi2GetEventIndicators, fmi2Real)
+NOT_MODEL_EXCHANGE_ARRAY(fmi2GetContinuousStates, fmi2Real)
+NOT_MODEL_EXCHANGE_ARRAY(fmi2GetNominalsOfContinuousStates, fmi2Real)

@@ -30,28 +30,20 @@ JOURNAL = "journal.jsonl"
 SMALL = scenario_toml(
     "small", plant=TABLE_1, maneuver={"x_ref": 0.01, "T": 0.01, "duration": 0.6, "iterations": 2},
     controllers=[{**PWC_PAPER, "F_inv0": 1e-5}, {**PAPWC_PAPER, "tolerance": 2e-5}],
-    tail="""\
-[sweep]
-"plant.f_s" = [130.0, 90.0]
-[monte_carlo]
-n = 3
-seed = 7
-"plant.m" = { dist = "uniform", rel = 0.3 }
-"controller.f_c_est" = { dist = "uniform", low = 0.8, high = 1.2, of = "plant.f_c" }
-""")
+    tables={"sweep": {"plant.f_s": [130.0, 90.0]},
+            "monte_carlo": {"n": 3, "seed": 7, "plant.m": {"dist": "uniform", "rel": 0.3},
+                            "controller.f_c_est": {"dist": "uniform", "low": 0.8, "high": 1.2,
+                                                   "of": "plant.f_c"}}})
 
 def resume_battery(n: int) -> str:
     """A battery whose runs are all valid, for kill and resume (n draws)."""
     return scenario_toml(
         "resume", maneuver={"x_ref": 0.01, "duration": 0.5, "iterations": 2},
-        controllers=[PAPWC_PAPER], tail=f"""\
-[monte_carlo]
-n = {n}
-seed = 3
-"plant.m" = {{ dist = "uniform", rel = 0.3 }}
-"plant.f_c" = {{ dist = "normal", rel_std = 0.1 }}
-"plant.f_s" = {{ dist = "uniform", low = 1.0, high = 1.6, of = "plant.f_c" }}
-""")
+        controllers=[PAPWC_PAPER],
+        tables={"monte_carlo": {
+            "n": n, "seed": 3, "plant.m": {"dist": "uniform", "rel": 0.3},
+            "plant.f_c": {"dist": "normal", "rel_std": 0.1},
+            "plant.f_s": {"dist": "uniform", "low": 1.0, "high": 1.6, "of": "plant.f_c"}}})
 
 
 def write(tmp_path: Path, text: str, name: str = "battery.toml") -> Path:

@@ -10,16 +10,12 @@ from harness import PAPWC_PAPER, PWC_PAPER, scenario_toml
 from papwc.battery import load_battery, local_dask_cluster, run_battery
 
 BATTERY = scenario_toml("dasksmall", maneuver={"x_ref": 0.01, "duration": 0.5, "iterations": 2},
-                        controllers=[PWC_PAPER, PAPWC_PAPER], tail="""\
-[sweep]
-"plant.f_s" = [130.0, 90.0]
-[monte_carlo]
-n = 5
-seed = 5
-"plant.m" = { dist = "uniform", rel = 0.3 }
-"plant.c" = { dist = "normal", rel_std = 0.1 }
-"controller.m_est" = { dist = "uniform", low = 0.8, high = 1.2, of = "plant.m" }
-""")
+                        controllers=[PWC_PAPER, PAPWC_PAPER], tables={
+    "sweep": {"plant.f_s": [130.0, 90.0]},
+    "monte_carlo": {"n": 5, "seed": 5, "plant.m": {"dist": "uniform", "rel": 0.3},
+                    "plant.c": {"dist": "normal", "rel_std": 0.1},
+                    "controller.m_est": {"dist": "uniform", "low": 0.8, "high": 1.2,
+                                         "of": "plant.m"}}})
 
 
 @pytest.mark.dask

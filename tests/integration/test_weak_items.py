@@ -21,10 +21,8 @@ from papwc.cli import main
 PROJECT = Path(__file__).resolve().parents[2]
 BATTERY = scenario_toml("sig", maneuver={"x_ref": 0.01, "T": 0.01, "duration": 30.0,
                                           "iterations": 20},
-                        controllers=[PAPWC_PAPER], tail="""\
-[sweep]
-"plant.m" = [100.0, 110.0, 120.0, 130.0, 140.0, 150.0, 160.0, 170.0]
-""")
+                        controllers=[PAPWC_PAPER],
+                        tables={"sweep": {"plant.m": [100.0 + 10.0 * k for k in range(8)]}})
 
 
 def test_the_resume_line_keeps_the_limits_it_needs(tmp_path, friction_plant_fmu, capsys,

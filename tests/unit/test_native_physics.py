@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from harness import random_forces
+from harness import REALISM_VARIANTS, random_forces
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -347,20 +347,11 @@ def test_deviation_is_the_model_layer_bit_for_bit(native: NativeLibrary, case: s
     check()
 
 
-#: Each deviation at the values of scenarios/realism.toml (tests/unit/test_plant_deviations.py),
-#: and all together.
+#: Each deviation at the values of scenarios/realism.toml, and all together.
 REALISM = {
-    "stribeck": {"v_s": 1e-3},
-    "stribeck_delta1": {"v_s": 2e-3, "delta_s": 1.0},
-    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
-    "lugre_light": {"sigma_0": 6.5e6, "sigma_1": 1e4, "v_s": 1e-3, "ripple": 0.1},
-    "ripple": {"ripple": 0.1, "ripple_period": 1e-3, "ripple_phase": 0.3},
-    "stiction": {"f_s_spread": 0.1, "seed": 3},
+    **REALISM_VARIANTS,
     "noise": {"noise_std": 2e-7, "seed": 5, "x_resolution": 1e-7},
-    "lag": {"tau_u": 2e-3},
-    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
-    "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
-            "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "noise_std": 1e-7},
+    "all": {**REALISM_VARIANTS["all"], "noise_std": 1e-7},
     "motor_encoder": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "seed": 4,
                       "x_resolution": 1e-7, "x_d_resolution": 1e-7, "x_d_noise_std": 5e-8},
     "motor_encoder_rigid": {"x_d_noise_std": 2e-7, "seed": 6, "x_d_resolution": 1e-7},

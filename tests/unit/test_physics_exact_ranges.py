@@ -78,25 +78,21 @@ def reference_step(x, v, u, h, m, f_c, f_s, c) -> tuple[float, float]:
     with localcontext() as ctx:
         ctx.prec, ctx.Emin, ctx.Emax = _PREC, -999999, 999999
         x, v, u, h, m, f_c, f_s, c = (Decimal(q) for q in (x, v, u, h, m, f_c, f_s, c))
-        if v == 0:
-            if -f_s <= u <= f_s:
-                return float(x), 0.0
-            s = 1 if u > 0 else -1
-            force = u - s * f_c
-        else:
-            s = 1 if v > 0 else -1
-            force = u - s * f_c
-            if s * force < 0:
-                t_star = (-m * v / force if c == 0
-                          else (m / c) * (1 + (-c * v / force)).ln())
-                if t_star < h:
-                    x, _ = _segment(x, v, force, t_star, m, c)
-                    h -= t_star
-                    if -f_s <= u <= f_s:
-                        return float(x), 0.0
-                    s = -s
-                    force = u - s * f_c
-                    v = Decimal(0)
+        if v == 0 and -f_s <= u <= f_s:  # stuck
+            return float(x), 0.0
+        # the friction opposes the motion: the velocity's direction, from rest the force's
+        s = Decimal(1).copy_sign(u if v == 0 else v)
+        force = u - s * f_c
+        if v != 0 and s * force < 0:  # decelerating: is the mass at rest before h ends?
+            t_star = -m * v / force if c == 0 else (m / c) * (1 + (-c * v / force)).ln()
+            if t_star < h:
+                x, _ = _segment(x, v, force, t_star, m, c)
+                h -= t_star
+                if -f_s <= u <= f_s:
+                    return float(x), 0.0
+                s = -s
+                force = u - s * f_c
+                v = Decimal(0)
         x_end, v_end = _segment(x, v, force, h, m, c)
         return float(x_end), float(v_end)
 

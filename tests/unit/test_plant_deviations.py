@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from harness import random_forces
+from harness import REALISM_VARIANTS, random_forces
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy import stats
@@ -57,18 +57,7 @@ V_TOL = 1e-8
 F_TOL = 2e-5
 
 #: The deviations at the values of scenarios/realism.toml, and all together.
-CASES = {
-    "stribeck": {"v_s": 1e-3},
-    "stribeck_delta1": {"v_s": 2e-3, "delta_s": 1.0},
-    "lugre": {"sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},
-    "lugre_light": {"sigma_0": 6.5e6, "sigma_1": 1e4, "v_s": 1e-3, "ripple": 0.1},
-    "ripple": {"ripple": 0.1, "ripple_period": 1e-3, "ripple_phase": 0.3},
-    "stiction": {"f_s_spread": 0.1, "seed": 3},
-    "lag": {"tau_u": 2e-3},
-    "flexible": {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
-    "all": {"v_s": 1e-3, "ripple": 0.1, "f_s_spread": 0.1, "seed": 8, "tau_u": 2e-3,
-            "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3},
-}
+CASES = REALISM_VARIANTS
 
 
 # --- the defaults are Eq. (1) -------------------------------------------------------------------

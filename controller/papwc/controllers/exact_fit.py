@@ -92,17 +92,8 @@ class PulseModelEstimator:
         Levenberg-Marquardt iterations per new pulse.
     """
 
-    def __init__(
-        self,
-        m_est: float,
-        f_c_est: float,
-        c_est: float,
-        T: float,
-        f_p_max: float,
-        history: int = 16,
-        x_resolution: float = 0.0,
-        iterations: int = 12,
-    ) -> None:
+    def __init__(self, m_est: float, f_c_est: float, c_est: float, T: float, f_p_max: float,
+                 history: int = 16, x_resolution: float = 0.0, iterations: int = 12) -> None:
         self.m_est = float(m_est)
         self.f_c_est = float(f_c_est)
         self.T = float(T)

@@ -86,9 +86,10 @@ class Controller:
     Parameters
     ----------
     settings : ControllerSettings
-        The controller's settings (validated by the caller).
+        One ``[[controller]]`` table of a scenario, already checked against the ranges
+        and rules of :data:`papwc.model.controller_settings.CONTROLLER_SETTINGS`.
     T : float
-        Sample period, s.
+        Sample period, s: :meth:`update` is called once every T.
     """
 
     kind = "base"

@@ -166,9 +166,12 @@ class PidController(PulseControllerBase):
     Parameters
     ----------
     settings : ControllerSettings
-        The controller's settings (validated by the caller).
+        Validated settings of kind ``pid``: the gains ``k_p``, ``k_d``, ``k_i`` (None:
+        the defaults of :func:`pid_gains`), the trajectory's ``a_max`` and ``v_max``, the
+        force limit ``f_p_max``, the estimates ``m_est`` and ``f_c_est``, ``tolerance`` and
+        ``hunt_max``.
     T : float
-        Sample period, s.
+        Sample period, s; the default gains scale with ``w = 0.1/T`` rad/s.
     """
 
     kind = "pid"

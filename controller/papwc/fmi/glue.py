@@ -87,6 +87,9 @@ class CheckedSlave(Fmi2Slave):
     only when initialization ends.
     """
 
+    #: The model description's author and license, the same for every FMU of the project.
+    author = "papwc"
+    license = "BSD-2-Clause"
     #: Every variable of the FMU, in the order of their value references.
     VARIABLES: tuple[Variable, ...] = ()
     #: Rules between parameters.

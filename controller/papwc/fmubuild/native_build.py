@@ -524,20 +524,21 @@ def _fmi_header_notice(headers: Path) -> str:
 
 
 def build_native(source: NativeSource, out_dir: Path) -> Path:
-    """Build one native FMU, complete its model description, validate it.
+    """Compile ``source`` with zig for every platform, write its model description from the
+    variable table, and check the archive with fmpy's validation.
 
     Parameters
     ----------
     source : NativeSource
-        What the FMU is built from.
+        The model's C files, generated tables, documentation and reference result.
     out_dir : Path
-        Folder the ``<name>.fmu`` is written to (created if needed; an existing FMU of
-        that name is replaced once the new one is complete).
+        Where ``<name>.fmu`` goes (created if needed); an FMU already there is replaced
+        only once the new one is complete.
 
     Returns
     -------
     Path
-        The FMU written.
+        Path of ``<name>.fmu`` in ``out_dir``.
 
     Raises
     ------

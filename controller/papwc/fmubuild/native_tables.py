@@ -36,22 +36,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from papwc.model import plant as plant_rules
 from papwc.model.dynamics import MAX_EVENTS, MAX_STEPS, TOLERANCES
 from papwc.model.effects.encoder import MOTOR_STREAM as MOTOR_NOISE_STREAM
 from papwc.model.effects.encoder import STREAM as NOISE_STREAM
 from papwc.model.effects.stiction import STREAM as STICTION_STREAM
-from papwc.model.plant import (
-    ACCELERATION_MAX,
-    DAMPING_RATE_MAX,
-    INTEGRATED,
-    INTEGRATED_OFF_OR_AT_LEAST,
-    MODE_FREQUENCY_MAX,
-    OFF_OR_AT_LEAST,
-    PLANT_INPUTS,
-    PLANT_OUTPUTS,
-    PLANT_PARAMETERS,
-    PLANT_VARIABLES,
-)
+from papwc.model.plant import PLANT_INPUTS, PLANT_OUTPUTS, PLANT_PARAMETERS, PLANT_VARIABLES
 from papwc.model.variables import Variable
 
 __all__ = ["HEADER_NAME", "plant_header", "rule_tables", "value_references",
@@ -126,21 +116,21 @@ def rule_tables() -> str:
                 f"{_c_string(_real_parameter(name, label).unit_suffix)})"
                 for name, low in table.items()]
 
-    for name in INTEGRATED:
+    for name in plant_rules.INTEGRATED:
         _real_parameter(name, "INTEGRATED")
     return "\n".join([
         "/* The rules between parameters (papwc.model.plant.PLANT_CONSTRAINTS).",
         " * X(name, low, \"low\", \" unit\"): 0 (none) or >= low; OFF_OR_AT_LEAST always,",
         " * INTEGRATED_OFF_OR_AT_LEAST when an INTEGRATED deviation is > 0 (the first",
         " * names it). */",
-        _x_macro("FP_OFF_OR_AT_LEAST", off(OFF_OR_AT_LEAST, "OFF_OR_AT_LEAST")),
+        _x_macro("FP_OFF_OR_AT_LEAST", off(plant_rules.OFF_OR_AT_LEAST, "OFF_OR_AT_LEAST")),
         _x_macro("FP_INTEGRATED_OFF_OR_AT_LEAST",
-                 off(INTEGRATED_OFF_OR_AT_LEAST, "INTEGRATED_OFF_OR_AT_LEAST")),
+                 off(plant_rules.INTEGRATED_OFF_OR_AT_LEAST, "INTEGRATED_OFF_OR_AT_LEAST")),
         "/* X(name) */",
-        _x_macro("FP_INTEGRATED", [f"X({name})" for name in INTEGRATED]),
-        *_limit("MODE_FREQUENCY_MAX", MODE_FREQUENCY_MAX),
-        *_limit("DAMPING_RATE_MAX", DAMPING_RATE_MAX),
-        *_limit("ACCELERATION_MAX", ACCELERATION_MAX),
+        _x_macro("FP_INTEGRATED", [f"X({name})" for name in plant_rules.INTEGRATED]),
+        *_limit("MODE_FREQUENCY_MAX", plant_rules.MODE_FREQUENCY_MAX),
+        *_limit("DAMPING_RATE_MAX", plant_rules.DAMPING_RATE_MAX),
+        *_limit("ACCELERATION_MAX", plant_rules.ACCELERATION_MAX),
     ])
 
 

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from papwc.identify import IdentifyError
-from papwc.limits import MAX_INPUT_BYTES, input_path_problem
+from papwc.limits import read_input_text
 
 __all__ = [
     "MAX_LOG_ROWS",
@@ -113,27 +113,8 @@ def read_log(path: str | os.PathLike, columns: Columns = Columns()) -> Log:
         even, too few or too many rows.
     """
     path = Path(path)
-    problem = input_path_problem(path)
-    if problem == "no such file":
-        raise LogError(f"{path}: no such log file")
-    if problem is not None:
-        raise LogError(f"{path}: {problem}; give a log file (CSV)")
-    try:
-        with open(path, "rb") as f:
-            raw = f.read(MAX_INPUT_BYTES + 1)
-    except OSError as exc:
-        raise LogError(f"{path}: cannot read the log: {exc.strerror or exc}") from None
-    if len(raw) > MAX_INPUT_BYTES:
-        raise LogError(f"{path}: larger than {MAX_INPUT_BYTES // (1024 * 1024)} MB; a log has "
-                       f"at most {MAX_LOG_ROWS} rows")
-    if b"\0" in raw:
-        raise LogError(f"{path}: a binary file (it holds NUL bytes), not a log (CSV text)")
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as exc:
-        line = raw[:exc.start].count(b"\n") + 1
-        raise LogError(f"{path}: not UTF-8 text: byte 0x{raw[exc.start]:02x} at line {line}; "
-                       "save the log as UTF-8 CSV") from None
+    text = read_input_text(path, "log", "CSV", LogError, encoding="utf-8-sig",
+                           too_large=f"a log has at most {MAX_LOG_ROWS} rows")
     return parse_log(text, str(path), columns)
 
 
