@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import pytest
+
 from papwc.studies import drive_state
 
 
+@pytest.mark.slow
 def test_an_exact_model_lands_and_a_spring_two_percent_off_does_not():
     exact = drive_state.landings({}, 2)
     assert len(exact) == 2 and max(abs(e) for e in exact) < 1e-8

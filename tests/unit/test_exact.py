@@ -148,6 +148,7 @@ history = st.lists(
 )
 
 
+@pytest.mark.slow
 @settings(max_examples=150, deadline=None)
 @given(history=history, e=st.one_of(st.floats(-1.0, 1.0), st.floats(-1e-9, 1e-9)),
        t_p_max=st.sampled_from([0.03, math.inf]))
@@ -346,6 +347,7 @@ def _draw(seed: int) -> tuple[dict, float, float]:
             f_c * rng.uniform(0.8, 1.2))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("res", [0.0, 1e-6])
 def test_robust_to_spread_plants_and_wrong_estimates(res):
     # Plant parameters +-30 %, initial estimates +-20 % off; 20 seeded draws.

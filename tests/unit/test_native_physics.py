@@ -331,7 +331,11 @@ held_forces = st.tuples(
     st.integers(1, 4))
 
 
-@pytest.mark.parametrize("case", DEVIATIONS)
+@pytest.mark.parametrize("case", [
+    # the combined and the flexible cases integrate the most (seconds each)
+    pytest.param(case, marks=pytest.mark.slow) if case in ("all_stick_slip", "all_lugre",
+                                                           "flexible", "lugre") else case
+    for case in DEVIATIONS])
 def test_deviation_is_the_model_layer_bit_for_bit(native: NativeLibrary, case: str) -> None:
     @settings(SETTINGS, max_examples=12)
     @given(params=deviation_params(case), held=st.lists(held_forces, min_size=1, max_size=12),
@@ -489,6 +493,7 @@ def parameter_sets(draw: st.DrawFn) -> dict[str, float]:
     return {name: value for name, value in p.items() if BY_NAME[name].check(value) is None}
 
 
+@pytest.mark.slow
 def test_check_accepts_and_refuses_as_the_model_layer(native: NativeLibrary) -> None:
     """fp_check and plant_problems agree on every drawn set (the first refusal, word for
     word); among the sets drawn, each rule of PLANT_CONSTRAINTS is the first to refuse."""

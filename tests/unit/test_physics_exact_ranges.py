@@ -20,6 +20,7 @@ import math
 import os
 from decimal import Decimal, localcontext
 
+import pytest
 from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
@@ -31,6 +32,9 @@ from papwc.model.stickslip import step
 from papwc.model.variables import by_name
 from papwc.scenario import parse_scenario
 from papwc.scenario_run import run_scenario
+
+#: Fuzz campaigns over every accepted input (seconds each): not in the quick loop.
+pytestmark = pytest.mark.slow
 
 PLANT = by_name(PLANT_PARAMETERS)
 MANEUVER = by_name(MANEUVER_VARIABLES)

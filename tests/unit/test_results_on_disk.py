@@ -146,6 +146,7 @@ def test_a_folder_where_summary_csv_should_be_is_one_line(tmp_path: Path, capsys
     assert (tmp_path / "out" / "INCOMPLETE").is_file()
 
 
+@pytest.mark.slow
 def test_a_new_run_removes_its_own_stale_files_and_nothing_else(tmp_path: Path, capsys) -> None:
     assert run(tmp_path, capsys, iterations=3)[0] == 0
     out = tmp_path / "out"
@@ -189,6 +190,7 @@ class BrokenStdout:
         raise BrokenPipeError(errno.EPIPE, "Broken pipe")
 
 
+@pytest.mark.slow
 def test_a_closed_stdout_is_one_line_and_the_results_stay(tmp_path: Path, capsys,
                                                           monkeypatch) -> None:
     monkeypatch.setattr(sys, "stdout", BrokenStdout())
@@ -200,6 +202,7 @@ def test_a_closed_stdout_is_one_line_and_the_results_stay(tmp_path: Path, capsys
     assert (tmp_path / "out" / "summary.csv").is_file()
 
 
+@pytest.mark.slow
 def test_a_full_stdout_is_one_line_not_a_traceback(tmp_path: Path) -> None:
     if not Path("/dev/full").exists():
         pytest.skip("no /dev/full")

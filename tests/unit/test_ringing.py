@@ -9,6 +9,7 @@ import pytest
 from papwc.studies import ringing
 
 
+@pytest.mark.slow
 def test_a_flexible_drive_has_a_smallest_move_and_keeps_ringing(capsys):
     ringing.main([])
     out = capsys.readouterr().out

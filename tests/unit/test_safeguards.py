@@ -280,6 +280,7 @@ def test_a_mode_too_slow_for_a_bounded_dwell_is_refused_naming_it(f_mode):
     assert settings_problems({"f_mode": 0.0, "T": 0.01}) == []
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
 def test_a_ringing_table_gets_no_runaway_pulse(kind):
     """The 20 Hz mode of scenarios/realism.toml, told to the controllers: no pulse moves
