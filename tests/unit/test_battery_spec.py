@@ -108,6 +108,7 @@ def test_spec_counts_each_figure(crafted) -> None:
     assert set(counted) == set(SPEC_COLUMNS)
 
 
+@pytest.mark.slow
 def test_pulses_csv_and_spec_csv_are_written_with_the_runs_identification(crafted,
                                                                            tmp_path) -> None:
     battery, runs, records = crafted

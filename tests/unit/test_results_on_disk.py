@@ -159,6 +159,7 @@ def test_a_new_run_removes_its_own_stale_files_and_nothing_else(tmp_path: Path, 
         "trace_second_it2.csv"]
 
 
+@pytest.mark.slow
 def test_pulses_csv_lists_every_pulse_of_every_iteration_with_its_ratio(
         tmp_path: Path, capsys) -> None:
     """One row per pulse: as many per controller and iteration as summary.csv counts."""
@@ -237,6 +238,7 @@ def test_input_files_that_are_not_toml_text_are_refused_by_name(
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_f_p_max_at_or_below_f_s_is_warned_once_and_recorded(tmp_path: Path, capsys) -> None:
     text = SCENARIO.replace('label = "first"\n', 'label = "first"\nf_p_max = 120.0\n')
     main(["run", str(scenario_file(tmp_path, text=text)), "--plant", "physics", "--out",

@@ -87,7 +87,8 @@ def test_ringing_is_seen_and_shrinks_the_pulses(kind):
 
 @pytest.mark.parametrize("plant", [
     RIGID,
-    {**RIGID, "sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},  # LuGre gives back ~2 um
+    pytest.param({**RIGID, "sigma_0": 6.5e7, "sigma_1": 2e5, "v_s": 1e-3},  # gives back ~2 um
+                 marks=pytest.mark.slow),
     {**RIGID, "noise_std": 4e-7, "x_resolution": 1e-7, "seed": 3},
 ], ids=["eq1", "lugre", "noise"])
 def test_a_rigid_table_is_never_seen_ringing(plant):
