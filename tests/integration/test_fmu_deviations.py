@@ -9,6 +9,7 @@ value and range.
 
 from __future__ import annotations
 
+import math
 import random
 import xml.etree.ElementTree as ET
 import zipfile
@@ -164,8 +165,10 @@ def test_model_description_declares_the_deviations(friction_plant_fmu: Path) -> 
         assert causality == "parameter"
         assert typed.tag == var.type
         assert float(typed.get("start")) == var.default
-        assert float(typed.get("min")) == var.min
-        assert float(typed.get("max")) == var.max
+        # an excluded bound (ripple < 1) is declared as the next double inside it
+        assert float(typed.get("min")) == var.fmi_min
+        assert float(typed.get("max")) == var.fmi_max
+        assert var.fmi_max == (math.nextafter(var.max, 0.0) if var.max_open else var.max)
         if var.type == "Real":
             assert typed.get("unit") == var.unit
 
