@@ -9,11 +9,16 @@ reads both encoders -- the table's ``x_meas`` and the motor's ``x_d_meas`` -- an
   delta = x_d - x and its rate, with the table stuck (the table's friction holds
   it), that brings both to zero (poles at :data:`LOOP_POLE`; the rate from a
   two-reading estimator on the same model);
-* plans, applies and learns its pulses as the exact-model controller does
+* plans and learns its pulses as the exact-model controller does
   (:class:`papwc.controllers.exact.ExactController`: Eq. (3) learned from its
   own pulses, inside a trust region), on the rest detection and trust region of a
   rigid table: with the drive relaxed before every pulse, a pulse's move is a
   function of its height and width;
+* applies a pulse of n samples at height f_p as n samples of f_p on the motor (one
+  sample: f_p/(2*sin(omega*T/2)), the motor force whose spring's first peak pushes
+  the table with f_p), then no force until that peak (``ceil(1/(4*f_mode*T) - 1/2)``
+  samples), then the motor loop, which unloads the spring and so stops the table
+  sooner than friction alone;
 * gives the sequencer a sample only while a pulse is being applied or the drive
   is *relaxed*: the deflection's amplitude k_t*sqrt(delta**2 + (delta'/omega)**2)
   at most ``f_relax`` on :data:`RELAX_SAMPLES` readings in a row. So a pulse
@@ -143,7 +148,8 @@ class MotorLoop:
         return -(k1 * self.delta + k2 * self.rate)
 
     def amplitude(self) -> float:
-        """Force amplitude of the deflection's ringing, k_t*sqrt(delta**2 + (delta'/omega)**2), N."""
+        """Force amplitude of the deflection's ringing, N:
+        k_t*sqrt(delta**2 + (delta'/omega)**2)."""
         if math.isnan(self.delta):
             return math.inf
         return self.k_t * math.hypot(self.delta, self.rate / self.omega)
@@ -183,14 +189,14 @@ class DualLoopController(ExactController):
                                float(settings.c_t_est), self.T)
         self.f_relax = float(settings.f_relax)
         self.relax_max = max(1, int(round(RELAX_MAX_S / self.T)))
-        #: Samples of no force after a pulse's last one: half a period of the mode, in which
-        #: the spring's force reaches its first peak (the pulse's push on the table).
+        #: Samples of no force after a pulse's last one: until the spring's force after one
+        #: sample from a relaxed drive peaks, (pi/2 - omega*T/2)/omega, rounded up.
         #: Motor force per unit of the law's height of a one-sample pulse: one sample of
         #: force F on the motor of a relaxed drive pushes the table with at most
         #: 2*F*sin(omega*T/2) (the spring's first peak), so the height the law plans is
         #: the table's push.
         self.one_sample_gain = 1.0 / (2.0 * math.sin(math.pi * f_mode * self.T))
-        self.free_samples = int(math.ceil(0.5 / (f_mode * self.T) - 1e-9))
+        self.free_samples = int(math.ceil(0.25 / (f_mode * self.T) - 0.5 - 1e-9))
         #: Motor encoder reading for the next update, m (set by the host).
         self.x_d_meas = math.nan
         self._reset_drive()

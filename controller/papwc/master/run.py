@@ -192,4 +192,5 @@ def run_iteration(plant: Slave, controller: Controller | Slave, maneuver: Maneuv
     """
     slave = controller if hasattr(controller, "watch") else ControllerSlave(controller)
     motor = getattr(getattr(slave, "controller", None), "reads_x_d_meas", False)
-    return ClosedLoop(plant, slave, maneuver, label, motor_encoder=motor).iteration(iteration, first=True)
+    loop = ClosedLoop(plant, slave, maneuver, label, motor_encoder=motor)
+    return loop.iteration(iteration, first=True)

@@ -134,7 +134,8 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              0.0, min=0.0, max=1e6, nominal=10.0),
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
              "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
-             "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True, kinds=("exact", "dual_loop")),
+             "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True,
+             kinds=("exact", "dual_loop")),
     Variable("k_i", "Integral gain of the PID; default 0.25*m_est*w**3 with w = 0.1/T rad/s, "
              "at most 0.05*2*pi*f_mode (k_p and k_d default to m_est*w**2 and 2*0.7*w*m_est "
              "for it: the coarse loop's gains, which are these at T = 0.01 s)", "N/(m.s)", None,
