@@ -306,8 +306,8 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
     ("name", "value", "expected"),
     [
         ("K_c", 2.5, "parameter K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"),
-        ("kind", "bogus", "parameter kind = 'bogus': must be one of 'exact', 'papwc', 'pid', "
-                                 "'pwc'"),
+        ("kind", "bogus", "parameter kind = 'bogus': must be one of 'dual_loop', 'exact', "
+                                 "'papwc', 'pid', 'pwc'"),
         ("k_p", -5.0, "parameter k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m; -1 selects "
                       "the default"),
         ("T", 0.0, "parameter T = 0.0 s: must satisfy 1e-09 <= T <= 1000 s"),

@@ -29,7 +29,9 @@ The drive model is the mode frequency ``f_mode`` (Hz, of the motor on the spring
 against the stuck table: omega = 2*pi*f_mode = sqrt(k_t/m_d)), the motor mass
 ``m_d_est`` (kg; k_t = m_d_est*omega**2) and ``c_t_est`` (N.s/m). A loop sampled
 at T can damp such a mode only well below the Nyquist frequency: ``f_mode`` must
-lie in (0, :data:`F_MODE_MAX_T`/T] (the settings refuse others). When the drive
+lie in [0, :data:`F_MODE_MAX_T`/T] (the settings refuse others); with ``f_mode``
+= 0 (no drive model) there is no motor loop and the controller is the exact-model
+controller on the table's encoder, with its rest and trust of a rigid table. When the drive
 does not relax within :data:`RELAX_MAX_S` seconds (a drive unlike its model), the
 controller stops with the reason ``model_rejected`` and outputs 0.
 
@@ -126,15 +128,18 @@ class MotorLoop:
 
     def reset(self) -> None:
         """Forget the readings (the next one starts the estimate)."""
-        self.delta = math.nan
+        self.delta = 0.0
         self.rate = 0.0
         self.u_prev = 0.0
+        #: Readings taken since the reset (at most 2 counted).
+        self.readings = 0
 
     def observe(self, delta: float, u_prev: float) -> None:
         """Take the reading delta (m) after u_prev (N) was held over the last sample."""
-        if math.isnan(self.delta):
-            self.delta, self.rate = delta, 0.0
+        if self.readings == 0:
+            self.delta, self.rate, self.readings = delta, 0.0, 1
             return
+        self.readings = 2
         p11, p12, p21, p22 = self.phi
         g1, g2 = self.gamma
         d0 = self.delta
@@ -150,19 +155,20 @@ class MotorLoop:
     def amplitude(self) -> float:
         """Force amplitude of the deflection's ringing, N:
         k_t*sqrt(delta**2 + (delta'/omega)**2)."""
-        if math.isnan(self.delta):
+        if self.readings < 2:
             return math.inf
         return self.k_t * math.hypot(self.delta, self.rate / self.omega)
 
     def state(self) -> list[float]:
-        """delta (m), its rate (m/s), the last force (N)."""
-        return [self.delta, self.rate, self.u_prev]
+        """delta (m), its rate (m/s), the last force (N), the readings (0, 1, 2)."""
+        return [self.delta, self.rate, self.u_prev, float(self.readings)]
 
     def set_state(self, values: list[float]) -> None:
         """Restore :meth:`state`."""
-        if len(values) != 3:
-            raise ValueError(f"law.motor holds {len(values)} numbers, not 3")
-        self.delta, self.rate, self.u_prev = (float(v) for v in values)
+        if len(values) != 4:
+            raise ValueError(f"law.motor holds {len(values)} numbers, not 4")
+        self.delta, self.rate, self.u_prev = (float(v) for v in values[:3])
+        self.readings = min(max(int(values[3]), 0), 2)
 
 
 class DualLoopController(ExactController):
@@ -177,16 +183,17 @@ class DualLoopController(ExactController):
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
         f_mode = float(settings.f_mode)
-        if not 0.0 < f_mode * T <= F_MODE_MAX_T:
+        if not 0.0 <= f_mode * T <= F_MODE_MAX_T:
             raise ValueError(f"f_mode = {f_mode!r} Hz: the dual-loop controller needs the "
-                             f"drive's mode in (0, {F_MODE_MAX_T:g}/T] = (0, "
+                             f"drive's mode in [0, {F_MODE_MAX_T:g}/T] = [0, "
                              f"{F_MODE_MAX_T / T:g}] Hz")
         # The pulses are planned as on a rigid table: the motor loop relaxes the drive
         # before each, so neither the rest's dwell nor the trust region need the mode.
         super().__init__(dataclasses.replace(settings, f_mode=0.0), T)
         self.settings = settings
-        self.motor = MotorLoop(2.0 * math.pi * f_mode, float(settings.m_d_est),
-                               float(settings.c_t_est), self.T)
+        #: The motor loop (None with f_mode = 0: no drive model, the table's encoder alone).
+        self.motor = (MotorLoop(2.0 * math.pi * f_mode, float(settings.m_d_est),
+                                float(settings.c_t_est), self.T) if f_mode > 0.0 else None)
         self.f_relax = float(settings.f_relax)
         self.relax_max = max(1, int(round(RELAX_MAX_S / self.T)))
         #: Samples of no force after a pulse's last one: until the spring's force after one
@@ -195,14 +202,17 @@ class DualLoopController(ExactController):
         #: force F on the motor of a relaxed drive pushes the table with at most
         #: 2*F*sin(omega*T/2) (the spring's first peak), so the height the law plans is
         #: the table's push.
-        self.one_sample_gain = 1.0 / (2.0 * math.sin(math.pi * f_mode * self.T))
-        self.free_samples = int(math.ceil(0.25 / (f_mode * self.T) - 0.5 - 1e-9))
-        #: Motor encoder reading for the next update, m (set by the host).
-        self.x_d_meas = math.nan
+        self.one_sample_gain = (1.0 / (2.0 * math.sin(math.pi * f_mode * self.T))
+                                if f_mode > 0.0 else 1.0)
+        self.free_samples = (int(math.ceil(0.25 / (f_mode * self.T) - 0.5 - 1e-9))
+                             if f_mode > 0.0 else 0)
+        #: Motor encoder reading for the next update, m (set by the host; 0 unconnected).
+        self.x_d_meas = 0.0
         self._reset_drive()
 
     def _reset_drive(self) -> None:
-        self.motor.reset()
+        if self.motor is not None:
+            self.motor.reset()
         #: Readings in a row with the drive relaxed; samples since it last was.
         self.relaxed = 0
         self.unrelaxed = 0
@@ -219,12 +229,14 @@ class DualLoopController(ExactController):
         """Force u (N) over the next sample, from the table's reading x_meas (m), the
         motor's :attr:`x_d_meas` (m) and the reference x_ref (m)."""
         seq = self.seq
+        motor = self.motor
+        if motor is None:
+            return seq.update(x_meas, x_ref)
         x_d = self.x_d_meas
         if seq.stopped or self.drive_stop:
             return 0.0
         if not (-X_LIMIT <= x_d <= X_LIMIT and -X_LIMIT <= x_meas <= X_LIMIT):
             return seq.stop(Reason.INVALID_MEASUREMENT)
-        motor = self.motor
         motor.observe(x_d - x_meas, motor.u_prev)
         if motor.amplitude() <= self.f_relax:
             self.relaxed += 1
@@ -269,14 +281,17 @@ class DualLoopController(ExactController):
     def law_state(self) -> dict[str, Any]:
         """The exact-model law's state, the motor loop's and the relaxation counts."""
         out = super().law_state()
-        out["motor"] = self.motor.state()
+        out["motor"] = self.motor.state() if self.motor is not None else []
         out["relax"] = [self.relaxed, self.unrelaxed, int(self.drive_stop), self.free]
         out["x_d_meas"] = self.x_d_meas
         return out
 
     def set_law_state(self, values: Mapping[str, Any]) -> None:
         super().set_law_state(values)
-        self.motor.set_state(list(values["motor"]))
+        if self.motor is not None:
+            self.motor.set_state(list(values["motor"]))
+        elif list(values["motor"]):
+            raise ValueError("law.motor holds numbers, but f_mode = 0 (no motor loop)")
         relax = [int(v) for v in values["relax"]]
         if len(relax) != 4:
             raise ValueError(f"law.relax holds {len(relax)} numbers, not 4")

@@ -129,7 +129,9 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "stay rest_band and rest_samples", "", True, type="Boolean"),
     Variable("f_mode", "Frequency of the machine's slowest mode (0 = rigid or unknown): rest "
              f"lasts at least {MODE_PERIODS:g} periods of it (the ringing a pulse leaves is "
-             "waited out before the pulse is judged) and the trust region stays at most 0.5",
+             "waited out before the pulse is judged) and the trust region stays at most 0.5 "
+             "(dual_loop: the mode of the motor on the coupling against the stuck table, "
+             "at most 0.25/T, that its motor loop damps; 0: no motor loop)",
              "Hz",
              0.0, min=0.0, max=1e6, nominal=10.0),
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
@@ -208,12 +210,13 @@ def _dual_loop_mode(values: Mapping[str, Any]) -> tuple[str, str] | None:
     if values["kind"] != "dual_loop":
         return None
     f_mode, T = values["f_mode"], values["T"]
-    if 0.0 < f_mode * T <= DUAL_LOOP_F_MODE_MAX_T:
+    if f_mode * T <= DUAL_LOOP_F_MODE_MAX_T:
         return None
     return "f_mode", (f"f_mode = {f_mode!r} Hz: the dual_loop controller needs the drive's "
-                      f"mode in 0 < f_mode <= {DUAL_LOOP_F_MODE_MAX_T:g}/T = "
-                      f"{DUAL_LOOP_F_MODE_MAX_T / T:g} Hz (T = {T!r} s): its motor loop, "
-                      "sampled at T, cannot damp a mode nearer the Nyquist frequency")
+                      f"mode at f_mode <= {DUAL_LOOP_F_MODE_MAX_T:g}/T = "
+                      f"{DUAL_LOOP_F_MODE_MAX_T / T:g} Hz (T = {T!r} s; 0: no motor loop): its "
+                      "motor loop, sampled at T, cannot damp a mode nearer the Nyquist "
+                      "frequency")
 
 
 #: Rules between settings (and the sample period ``T``, where it is given: the
