@@ -5,8 +5,8 @@ damping c_t), a pulse leaves the drive ringing; a pulse started from a ringing d
 moves the table by an amount its height and width do not decide. This controller
 reads both encoders -- the table's ``x_meas`` and the motor's ``x_d_meas`` -- and
 
-* between pulses runs a *motor loop*: state feedback on the spring deflection
-  delta = x_d - x and its rate, with the table stuck (the table's friction holds
+* between pulses, once the table is stuck, runs a *motor loop*: state feedback on
+  the spring deflection delta = x_d - x and its rate (the table's friction holds
   it), that brings both to zero (poles at :data:`LOOP_POLE`; the rate from a
   two-reading estimator on the same model);
 * plans and learns its pulses as the exact-model controller does
@@ -17,8 +17,9 @@ reads both encoders -- the table's ``x_meas`` and the motor's ``x_d_meas`` -- an
 * applies a pulse of n samples at height f_p as n samples of f_p on the motor (one
   sample: f_p/(2*sin(omega*T/2)), the motor force whose spring's first peak pushes
   the table with f_p), then no force until that peak (``ceil(1/(4*f_mode*T) - 1/2)``
-  samples), then the motor loop, which unloads the spring and so stops the table
-  sooner than friction alone;
+  samples) and on while the table's reading still moves (by more than the rest
+  band), then the motor loop: the table's move is that of the pulse on the free
+  drive (no more), and the loop relaxes the drive with the table stuck;
 * gives the sequencer a sample only while a pulse is being applied or the drive
   is *relaxed*: the deflection's amplitude k_t*sqrt(delta**2 + (delta'/omega)**2)
   at most ``f_relax`` on :data:`RELAX_SAMPLES` readings in a row. So a pulse
@@ -174,7 +175,7 @@ class MotorLoop:
 class DualLoopController(ExactController):
     """Exact-model pulses from a relaxed drive, a motor loop between them (see the module).
 
-    It reads the settings of kind ``exact`` and ``f_mode`` (Hz, in (0, 0.25/T]),
+    It reads the settings of kind ``exact`` and ``f_mode`` (Hz, in [0, 0.25/T]),
     ``m_d_est`` (kg), ``c_t_est`` (N.s/m) and ``f_relax`` (N).
     """
 
@@ -217,8 +218,11 @@ class DualLoopController(ExactController):
         self.relaxed = 0
         self.unrelaxed = 0
         self.drive_stop = False
-        #: Samples of no force still to go after the last pulse.
-        self.free = 0
+        #: Samples of no force still to go after the last pulse (0: none, but no force while
+        #: the table moves; -1: the motor loop acts).
+        self.free = -1
+        #: The table's last reading, m.
+        self.x_last = 0.0
 
     def reset(self) -> None:
         """Start a new maneuver from rest (learned model kept; the drive's estimate anew)."""
@@ -233,6 +237,7 @@ class DualLoopController(ExactController):
         if motor is None:
             return seq.update(x_meas, x_ref)
         x_d = self.x_d_meas
+        x_prev, self.x_last = self.x_last, x_meas
         if seq.stopped or self.drive_stop:
             return 0.0
         if not (-X_LIMIT <= x_d <= X_LIMIT and -X_LIMIT <= x_meas <= X_LIMIT):
@@ -246,10 +251,12 @@ class DualLoopController(ExactController):
             u = seq.update(x_meas, x_ref)  # a pulse or the coarse move goes on
             if seq.pulse_left == 0 and seq.mode == Mode.PULSE:
                 self.free = self.free_samples
-        elif self.free > 0:
-            self.free -= 1
+        elif self.free > 0 or (self.free == 0 and abs(x_meas - x_prev) > self.rest.band):
+            # no force until the spring's first peak, and then while the table moves
+            self.free = max(self.free - 1, 0)
             u = 0.0
         elif self.relaxed >= RELAX_SAMPLES or seq.first:
+            self.free = -1
             self.unrelaxed = 0
             u = seq.update(x_meas, x_ref)
             if seq.stopped:
@@ -261,6 +268,7 @@ class DualLoopController(ExactController):
                 self.free = self.free_samples
                 u *= self.one_sample_gain
         else:
+            self.free = -1
             self.unrelaxed += 1
             if self.unrelaxed > self.relax_max:
                 self.drive_stop = True
@@ -283,6 +291,7 @@ class DualLoopController(ExactController):
         out = super().law_state()
         out["motor"] = self.motor.state() if self.motor is not None else []
         out["relax"] = [self.relaxed, self.unrelaxed, int(self.drive_stop), self.free]
+        out["x_last"] = self.x_last
         out["x_d_meas"] = self.x_d_meas
         return out
 
@@ -298,3 +307,4 @@ class DualLoopController(ExactController):
         self.relaxed, self.unrelaxed, self.drive_stop, self.free = (
             relax[0], relax[1], bool(relax[2]), relax[3])
         self.x_d_meas = float(values["x_d_meas"])
+        self.x_last = float(values["x_last"])
