@@ -259,6 +259,9 @@ class DualLoopController(ExactController):
             self.free = -1
             self.unrelaxed = 0
             u = seq.update(x_meas, x_ref)
+            if seq.idle_samples:
+                # (a sample the sequencer only counted: the motor loop's force still changes)
+                seq.catch_up()
             if seq.stopped:
                 u = 0.0
             elif not (seq.mode == Mode.PULSE or seq.mode == Mode.COARSE):
