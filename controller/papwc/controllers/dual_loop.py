@@ -24,7 +24,7 @@ reads both encoders -- the table's ``x_meas`` and the motor's ``x_d_meas`` -- an
   is *relaxed*: the deflection's amplitude k_t*sqrt(delta**2 + (delta'/omega)**2)
   at most ``f_relax`` on :data:`RELAX_SAMPLES` readings in a row. So a pulse
   starts, a pulse's move is read and the maneuver settles only from a relaxed
-  drive.
+  drive; settled, the force is 0.
 
 The drive model is the mode frequency ``f_mode`` (Hz, of the motor on the spring
 against the stuck table: omega = 2*pi*f_mode = sqrt(k_t/m_d)), the motor mass
@@ -53,7 +53,7 @@ from typing import Any
 
 from ..model.settings import DUAL_LOOP_F_MODE_MAX_T
 from .exact import ExactController
-from .interface import Mode, Reason
+from .interface import Mode, Outcome, Reason
 from .sequencer import X_LIMIT
 from .settings import ControllerSettings
 
@@ -273,12 +273,14 @@ class DualLoopController(ExactController):
         else:
             self.free = -1
             self.unrelaxed += 1
-            if self.unrelaxed > self.relax_max:
+            if self.unrelaxed > self.relax_max and seq.outcome != Outcome.SETTLED:
                 self.drive_stop = True
                 seq.stop(Reason.MODEL_REJECTED)
                 motor.u_prev = 0.0
                 return 0.0
             u = motor.force()
+        if seq.mode == Mode.SETTLED and seq.outcome == Outcome.SETTLED:
+            u = 0.0  # settled from a relaxed drive: no force, as every pulse controller
         u = min(max(u, -self.settings.f_p_max), self.settings.f_p_max)
         motor.u_prev = u
         return u
