@@ -169,7 +169,8 @@ def test_a_drive_that_does_not_relax_stops_it_with_zero_force() -> None:
     ctl = make_controller(dual(), T)
     forces = []
     for k in range(150):
-        ctl.x_d_meas = 1e-4 * math.sin(2.0 * math.pi * 20.0 * k * T) if k > 2 else 0.0
+        # the motor follows the first pulse, then rings on, undamped
+        ctl.x_d_meas = 2e-4 + 1e-4 * math.sin(2.0 * math.pi * 20.0 * k * T) if k else 0.0
         forces.append(ctl.update(k * T, 0.0, 1e-3))
     assert ctl.outcome == Outcome.STOPPED and ctl.outcome_reason == Reason.MODEL_REJECTED
     assert forces[-30:] == [0.0] * 30
@@ -193,3 +194,26 @@ def test_its_state_restores_the_run() -> None:
         assert b.update(k * T, slave.x_meas, 1e-3) == u
         step(slave, u, k)
     assert a.state() == b.state()
+
+
+def test_a_motor_encoder_that_does_not_follow_the_first_pulse_stops_it() -> None:
+    """The motor reading left at 0 (the input not connected) on the 20 Hz drive: the sample
+    after the first pulse's first force shows no motor move, the controller stops
+    (invalid_measurement) before its motor loop acts, and the table moves no more than that
+    pulse alone moves it."""
+    slave = _slave(DRIVE_20HZ)
+    slave.initialize()
+    ctl = make_controller(dual(), T)
+    forces = []
+    for k in range(100):
+        ctl.x_d_meas = 0.0  # not connected
+        u = ctl.update(k * T, slave.x_meas, 1e-3)
+        forces.append(u)
+        step(slave, u, k)
+    assert ctl.outcome == Outcome.STOPPED and ctl.outcome_reason == Reason.INVALID_MEASUREMENT
+    assert forces[0] > 0.0 and forces[1:] == [0.0] * 99
+    alone = _slave(DRIVE_20HZ)
+    alone.initialize()
+    for k in range(100):
+        step(alone, forces[0] if k == 0 else 0.0, k)
+    assert slave.x == alone.x < 1e-3

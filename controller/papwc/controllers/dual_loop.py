@@ -39,7 +39,9 @@ controller stops with the reason ``model_rejected`` and outputs 0.
 The host sets :attr:`DualLoopController.x_d_meas` (m) before each
 :meth:`~DualLoopController.update` (the controller slave and PulseController.fmu
 do, from their input ``x_d_meas``); a reading that is not finite stops it with
-``invalid_measurement``.
+``invalid_measurement``, and so does a motor reading that does not follow a pulse's
+first sample (less than :data:`MOTOR_FOLLOWS` of the motor's move on the model: the
+encoder not connected), before the loop acts on it.
 
 Standard library only (bundled into the controller FMU).
 """
@@ -68,6 +70,9 @@ LOOP_POLE = 0.2
 RELAX_SAMPLES = 3
 #: Longest the drive may take to relax, s: beyond it the controller stops.
 RELAX_MAX_S = 1.0
+#: Least fraction of the motor's move over a pulse's first sample (on the model) that its
+#: encoder must show; less stops the controller (``invalid_measurement``).
+MOTOR_FOLLOWS = 0.1
 
 
 class MotorLoop:
@@ -223,6 +228,9 @@ class DualLoopController(ExactController):
         self.free = -1
         #: The table's last reading, m.
         self.x_last = 0.0
+        #: A pulse started at the last sample, from the motor reading x_d_fired (m).
+        self.fired = False
+        self.x_d_fired = 0.0
 
     def reset(self) -> None:
         """Start a new maneuver from rest (learned model kept; the drive's estimate anew)."""
@@ -242,6 +250,14 @@ class DualLoopController(ExactController):
             return 0.0
         if not (-X_LIMIT <= x_d <= X_LIMIT and -X_LIMIT <= x_meas <= X_LIMIT):
             return seq.stop(Reason.INVALID_MEASUREMENT)
+        if self.fired:
+            # the sample after a pulse's first force on a relaxed drive: the motor moved
+            # by about Gamma_1*u; a reading that did not follow (an encoder not connected,
+            # stuck) would make the loop push on a drive it does not see
+            if abs(x_d - self.x_d_fired) < MOTOR_FOLLOWS * abs(motor.gamma[0] * motor.u_prev):
+                motor.u_prev = 0.0
+                return seq.stop(Reason.INVALID_MEASUREMENT)
+            self.fired = False
         motor.observe(x_d - x_meas, motor.u_prev)
         if motor.amplitude() <= self.f_relax:
             self.relaxed += 1
@@ -266,10 +282,12 @@ class DualLoopController(ExactController):
                 u = 0.0
             elif not (seq.mode == Mode.PULSE or seq.mode == Mode.COARSE):
                 u = motor.force()
-            elif seq.pulse_left == 0 and seq.mode == Mode.PULSE:
-                # a pulse of one sample fired: the table's push is the law's height
-                self.free = self.free_samples
-                u *= self.one_sample_gain
+            else:
+                self.fired, self.x_d_fired = True, x_d
+                if seq.pulse_left == 0 and seq.mode == Mode.PULSE:
+                    # a pulse of one sample fired: the table's push is the law's height
+                    self.free = self.free_samples
+                    u *= self.one_sample_gain
         else:
             self.free = -1
             self.unrelaxed += 1
@@ -297,6 +315,7 @@ class DualLoopController(ExactController):
         out["motor"] = self.motor.state() if self.motor is not None else []
         out["relax"] = [self.relaxed, self.unrelaxed, int(self.drive_stop), self.free]
         out["x_last"] = self.x_last
+        out["fired"] = [int(self.fired), self.x_d_fired]
         out["x_d_meas"] = self.x_d_meas
         return out
 
@@ -313,3 +332,7 @@ class DualLoopController(ExactController):
             relax[0], relax[1], bool(relax[2]), relax[3])
         self.x_d_meas = float(values["x_d_meas"])
         self.x_last = float(values["x_last"])
+        fired = [float(v) for v in values["fired"]]
+        if len(fired) != 2:
+            raise ValueError(f"law.fired holds {len(fired)} numbers, not 2")
+        self.fired, self.x_d_fired = bool(fired[0]), fired[1]
