@@ -41,7 +41,8 @@ STEP_RTOL = 1e-9
 
 
 class PulseController(CheckedSlave):
-    """Adaptive pulse controller (PWC, PAPWC, exact; or the PID baseline) sampled at each step.
+    """Adaptive pulse controller (PWC, PAPWC, exact, dual_loop; or the PID baseline) sampled at
+    each step.
 
     Parameters (the settings of a scenario's ``[[controller]]`` table and the
     sample period ``T``) are read when initialization ends; ``x_meas`` (m) and
@@ -50,7 +51,8 @@ class PulseController(CheckedSlave):
     parameter ``x_ref_offset``); ``u`` (N) is the
     force to hold over the next sample, and ``b_hat`` (m/s2), ``f_c_hat`` (N),
     ``pulses``, ``mode``, ``f_low`` (N), ``outcome`` and ``outcome_reason`` let
-    the controller be observed.
+    the controller be observed. The dual_loop kind also reads the input ``x_d_meas`` (m,
+    the motor encoder).
     """
 
     VARIABLES = PULSE_CONTROLLER_VARIABLES
@@ -162,7 +164,13 @@ class PulseController(CheckedSlave):
             if not _isfinite(x_ref):
                 return (f"the reference x_ref_offset + x_ref = {offset!r} + {self.x_ref!r} m is "
                         "not finite")
-        self.u = self._controller.update(current_time, x_meas, x_ref)
+        controller = self._controller
+        if controller.reads_x_d_meas:
+            x_d_meas = self.x_d_meas
+            if not _isfinite(x_d_meas):
+                return f"input x_d_meas = {x_d_meas!r} m is not finite"
+            controller.x_d_meas = x_d_meas
+        self.u = controller.update(current_time, x_meas, x_ref)
         return None
 
     # -- state -----------------------------------------------------------------------------

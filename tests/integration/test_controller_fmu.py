@@ -26,7 +26,7 @@ from harness import (
     settings_start_values,
 )
 
-from papwc.controllers import CONTROLLER_KINDS, Mode, make_controller
+from papwc.controllers import CONTROLLER_KINDS, Mode, Outcome, Reason, make_controller
 from papwc.controllers.settings import ControllerSettings
 from papwc.master import (
     ControllerSlave,
@@ -316,8 +316,8 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
     ("name", "value", "expected"),
     [
         ("K_c", 2.5, "parameter K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"),
-        ("kind", "bogus", "parameter kind = 'bogus': must be one of 'exact', 'papwc', 'pid', "
-                                 "'pwc'"),
+        ("kind", "bogus", "parameter kind = 'bogus': must be one of 'dual_loop', 'exact', "
+                                 "'papwc', 'pid', 'pwc'"),
         ("k_p", -5.0, "parameter k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m; "
                       "k_p_given = false selects the default"),
         ("T", 0.0, "parameter T = 0.0 s: must satisfy 1e-09 <= T <= 1000 s"),
@@ -512,3 +512,71 @@ def test_instances_of_both_fmus_run_independently(
         maneuver = dataclasses.replace(paper.maneuver, x_ref=x_ref, iterations=1)
         assert out == python_run(settings, params, maneuver).traces[0].column("u")[:-1]
     assert forces[0] != forces[1]
+
+
+# -- the dual-loop controller: the motor encoder's input ----------------------------------------
+#: realism.toml's 20 Hz flexible drive, read by a motor encoder of the table's resolution.
+FLEXIBLE = {"m": 100.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0, "m_d": 50.0, "k_t": 7.896e5,
+            "c_t": 251.3, "x_resolution": 1e-7, "x_d_resolution": 1e-7}
+DUAL = ControllerSettings(kind="dual_loop", f_p_max=300.0, tolerance=1e-7, m_est=150.0,
+                          f_c_est=80.0, x_resolution=1e-7, f_mode=20.0, m_d_est=50.0)
+
+
+@pytest.mark.parametrize("timing", ["immediate", "delayed"])
+def test_fmu_dual_loop_equals_the_python_controller_bit_for_bit(
+    pulse_controller_fmu: Path, friction_plant_fmu: Path, timing: str
+) -> None:
+    """The dual_loop kind in PulseController.fmu, its input x_d_meas connected by the master,
+    around FrictionPlant.fmu: every column of three iterations equal to the Python
+    controller around the in-process plant, the motor encoder's columns too."""
+    maneuver = Maneuver(x_ref=1e-3, T=T, duration=2.0, iterations=3, timing=timing)
+    with (controller_fmu(pulse_controller_fmu, DUAL, T) as controller,
+          FmuSlave(friction_plant_fmu) as plant):
+        plant.set_start_values(FLEXIBLE)
+        result = run_closed_loop(plant, controller, maneuver, DUAL)
+    reference = python_run(DUAL, FLEXIBLE, maneuver)
+    assert_same_runs(result, reference)
+    for ta, tb in zip(result.traces, reference.traces, strict=True):
+        assert ta.column("x_d_meas") == tb.column("x_d_meas")
+    last = reference.traces[-1]
+    if timing == "immediate":
+        # the motor loop acted (forces that are not pulses) and the move ends within 1 um
+        forces = [u for u, m in zip(reference.traces[0].column("u"),
+                                    reference.traces[0].column("mode"), strict=True)
+                  if m != Mode.PULSE and u != 0.0]
+        assert forces
+        assert abs(1e-3 - last.column("x")[-1]) <= 1e-6
+    else:
+        # the force one sample late: the motor reading does not follow the first pulse's
+        # first sample, and the controller (its loop made for a force applied at once) stops
+        # before its loop acts (invalid_measurement), nearer than it started
+        assert last.column("outcome")[-1] == Outcome.STOPPED
+        assert last.column("outcome_reason")[-1] == Reason.INVALID_MEASUREMENT
+        assert all(abs(1e-3 - tr.column("x")[-1]) < 1e-3 for tr in reference.traces)
+
+
+def test_fmu_dual_loop_refuses_a_mode_above_a_quarter_of_the_sample_rate(
+    controller: FmuInstance
+) -> None:
+    """f_mode = 40 Hz at T = 10 ms: the refusal is logged (naming f_mode and the bound 25 Hz)
+    and every doStep is discarded with it."""
+    controller.init(kind="dual_loop", f_mode=40.0, x_ref=1e-3)
+    errors = controller.logged(FMI2_ERROR)
+    assert len(errors) == 1 and "f_mode = 40.0 Hz" in errors[0], controller.messages
+    assert "f_mode <= 0.25/T = 25 Hz" in errors[0]
+    with pytest.raises(FMICallException) as info:
+        sample(controller, 0.0, 0.0)
+    assert info.value.status == FMI2_DISCARD
+    assert controller.get("u") == 0.0
+
+
+def test_fmu_dual_loop_refuses_a_motor_reading_that_is_not_finite(
+    controller: FmuInstance
+) -> None:
+    controller.init(kind="dual_loop", f_mode=20.0, x_ref=1e-3)
+    assert sample(controller, 0.0, 0.0) > 0.0  # the first pulse
+    controller.set("x_d_meas", math.nan)
+    with pytest.raises(FMICallException) as info:
+        sample(controller, T, 0.0)
+    assert info.value.status == FMI2_DISCARD
+    assert "input x_d_meas = nan m is not finite" in controller.messages[-1].text

@@ -149,7 +149,7 @@ def test_registry_makes_each_kind_and_refuses_an_unknown_one():
         assert type(ctl) is cls and isinstance(ctl, Controller) and ctl.kind == kind
         assert ctl.revision == 0 and ctl.mode == Mode.SETTLED
     with pytest.raises(ValueError, match="controller kind 'lqr' is unknown; known kinds: "
-                                         "exact, papwc, pid, pwc"):
+                                         "dual_loop, exact, papwc, pid, pwc"):
         make_controller(ControllerSettings(kind="lqr"), T)
 
 

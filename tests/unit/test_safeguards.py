@@ -53,8 +53,8 @@ PULSE_KINDS = sorted(k for k, c in CONTROLLER_KINDS.items()
 def _settings(kind: str, **kw) -> ControllerSettings:
     base = {"kind": kind, "f_p_max": 300.0, "t_p_max": 0.03, "m_est": 150.0, "f_c_est": 80.0,
             "K_c": 0.8 if kind == "papwc" else 0.5,
-            "tolerance": {"pwc": 0.0, "papwc": 2e-5, "exact": 1e-7}[kind]}
-    if kind == "exact":
+            "tolerance": {"pwc": 0.0, "papwc": 2e-5, "exact": 1e-7, "dual_loop": 1e-7}[kind]}
+    if kind in ("exact", "dual_loop"):
         base["t_p_max"] = math.inf
     return ControllerSettings(**{**base, **kw})
 
@@ -527,7 +527,7 @@ def test_settings_are_model_layer_entries():
                                 ("max_pulses", "", 20)]:
         var = SETTINGS_BY_NAME[name]
         assert var.unit == unit and var.default == default
-    assert SETTINGS_BY_NAME["trust0"].kinds == ("exact",)
+    assert SETTINGS_BY_NAME["trust0"].kinds == ("exact", "dual_loop")
     assert SETTINGS_BY_NAME["f_mode"].kinds == ()
     assert dataclasses.replace(_settings("papwc"), f_mode=-1.0).problems() == [
         ("f_mode", "f_mode = -1.0 Hz: must satisfy 0 <= f_mode <= 1e+06 Hz")]

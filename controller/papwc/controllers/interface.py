@@ -93,6 +93,9 @@ class Controller:
     """
 
     kind = "base"
+    #: Whether the kind reads the motor encoder: the host then sets ``x_d_meas`` (m) before
+    #: each :meth:`update` and a closed loop connects the plant's ``x_d_meas`` to it.
+    reads_x_d_meas = False
     #: Incremented whenever the estimates may have changed.
     revision = 0
     #: Samples only counted since the state was last brought up to date.

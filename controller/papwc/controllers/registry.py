@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from .dual_loop import DualLoopController
 from .exact import ExactController
 from .interface import Controller
 from .papwc import PapwcController
@@ -15,6 +16,7 @@ CONTROLLER_KINDS: dict[str, type[Controller]] = {
     PapwcController.kind: PapwcController,
     ExactController.kind: ExactController,
     PidController.kind: PidController,
+    DualLoopController.kind: DualLoopController,
 }
 
 

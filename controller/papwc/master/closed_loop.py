@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from papwc.controllers import Controller, make_controller
+from papwc.controllers import CONTROLLER_KINDS, Controller, make_controller
 from papwc.controllers.settings import ControllerSettings
 from papwc.errors import FmuError
 from papwc.master.algorithm import FixedStepAlgorithm
@@ -84,10 +84,13 @@ class ClosedLoop:
         Reference, period, duration, timing and measurement noise.
     label : str
         Name of the controller in the traces.
+    motor_encoder : bool
+        Connect ``plant.x_d_meas -> controller.x_d_meas`` too (a controller that reads the
+        motor encoder).
     """
 
     def __init__(self, plant: Slave, controller: Slave, maneuver: Maneuver,
-                 label: str = "") -> None:
+                 label: str = "", motor_encoder: bool = False) -> None:
         self.maneuver = maneuver
         self.plant = plant
         self.controller = controller
@@ -96,6 +99,8 @@ class ClosedLoop:
         execution.add_slave(plant)
         execution.connect(plant, "x_meas", controller, "x_meas")
         execution.connect(controller, "u", plant, "u")
+        if motor_encoder:
+            execution.connect(plant, "x_d_meas", controller, "x_d_meas")
         controller.set_start_values({"x_ref": maneuver.x_ref})
         self.noise = None
         if maneuver.noise_std > 0.0:
@@ -155,7 +160,9 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
     """
     settings = settings if settings is not None else ControllerSettings()
     result = RunResult(label or settings.kind, settings)
-    loop = ClosedLoop(plant, controller, maneuver, result.label)
+    kind = CONTROLLER_KINDS.get(settings.kind)
+    loop = ClosedLoop(plant, controller, maneuver, result.label,
+                      motor_encoder=kind is not None and kind.reads_x_d_meas)
     for number in range(1, maneuver.iterations + 1):
         trace = loop.iteration(number)
         if trace.error and not len(trace):
@@ -184,4 +191,6 @@ def run_iteration(plant: Slave, controller: Controller | Slave, maneuver: Maneuv
     if a step failed).
     """
     slave = controller if hasattr(controller, "watch") else ControllerSlave(controller)
-    return ClosedLoop(plant, slave, maneuver, label).iteration(iteration, first=True)
+    motor = getattr(getattr(slave, "controller", None), "reads_x_d_meas", False)
+    loop = ClosedLoop(plant, slave, maneuver, label, motor_encoder=motor)
+    return loop.iteration(iteration, first=True)

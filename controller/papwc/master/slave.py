@@ -340,6 +340,8 @@ class ControllerSlave(_WatchedAttributes):
         """Advance from ``t`` over ``h`` (s) and refresh :attr:`values`."""
         controller = self.controller
         idle = controller.idle_samples
+        if controller.reads_x_d_meas:
+            controller.x_d_meas = self.x_d_meas
         self.u = controller.update(t, self.x_meas, self.x_ref)
         if controller.idle_samples > idle:
             return  # a sample only counted: every output is the one of the last sample

@@ -44,7 +44,8 @@ DWELL_MAX = 1_000_000
 #: Settings of a ``[[controller]]`` table, in the order of the FMU's value references.
 CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("kind", "Controller kind (pwc: Section 2, papwc: Section 3, exact: Eq. (3) "
-             "learned, pid: PID with friction feed-forward, no pulses)", "", "papwc",
+             "learned, pid: PID with friction feed-forward, no pulses, dual_loop: exact pulses "
+             "from a drive relaxed by a motor-side loop on x_d_meas)", "", "papwc",
              type="String"),
     Variable("f_p_max", "Largest pulse amplitude (PWC always pulses at f_p_max), and the force "
              "limit of the coarse feedback and of the PID", "N", 300.0,
@@ -108,15 +109,15 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "counts as at rest (with rest_auto, at least this)", "m", 0.0, min=0.0, max=1.0,
              nominal=1e-6),
     Variable("c_est", "Initial estimate of the viscous damping", "N.s/m", 0.0, min=0.0,
-             max=1e9, kinds=("exact",), nominal=100.0),
+             max=1e9, kinds=("exact", "dual_loop"), nominal=100.0),
     Variable("history", "Number of pulses kept for the fit", "", 16, type="Integer", min=1,
-             max=1000, kinds=("exact",)),
+             max=1000, kinds=("exact", "dual_loop")),
     Variable("max_pulses", "Pulses per maneuver after which the controller stops (PWC and "
              "PAPWC: with safeguards)", "", 20, type="Integer", min=1, max=1_000_000),
     Variable("x_resolution", "Resolution of the position measurement; weights the fit", "m",
-             0.0, min=0.0, max=1.0, kinds=("exact",), nominal=1e-6),
+             0.0, min=0.0, max=1.0, kinds=("exact", "dual_loop"), nominal=1e-6),
     Variable("f_s_tol", "Relative width of the f_s bracket below which no more probing is "
-             "done", "1", 0.02, min=0.0, max=1.0, min_open=True, kinds=("exact",)),
+             "done", "1", 0.02, min=0.0, max=1.0, min_open=True, kinds=("exact", "dual_loop")),
     Variable("safeguards", "Safeguards around the control law: no planned pulse beyond the "
              "trust region (a multiple of |e| that shrinks when pulses move more than "
              "predicted), none that would end the maneuver farther from the target than it "
@@ -129,12 +130,15 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "stay rest_band and rest_samples", "", True, type="Boolean"),
     Variable("f_mode", "Frequency of the machine's slowest mode (0 = rigid or unknown): rest "
              f"lasts at least {MODE_PERIODS:g} periods of it (the ringing a pulse leaves is "
-             "waited out before the pulse is judged) and the trust region stays at most 0.5",
+             "waited out before the pulse is judged) and the trust region stays at most 0.5 "
+             "(dual_loop: the mode of the motor on the coupling against the stuck table, "
+             "at most 0.25/T, that its motor loop damps; 0: no motor loop)",
              "Hz",
              0.0, min=0.0, max=1e6, nominal=10.0),
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
              "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
-             "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True, kinds=("exact",)),
+             "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True,
+             kinds=("exact", "dual_loop")),
     Variable("k_i", "Integral gain of the PID; default 0.25*m_est*w**3 with w = 0.1/T rad/s, "
              "at most 0.05*2*pi*f_mode (k_p and k_d default to m_est*w**2 and 2*0.7*w*m_est "
              "for it: the coarse loop's gains, which are these at T = 0.01 s)", "N/(m.s)", None,
@@ -149,7 +153,21 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "maneuver started, stops (outcome stopped, reason hunting): a reversal is a rest "
              "on the other side of the target than the last one", "", 4, type="Integer",
              min=1, max=1_000_000, kinds=("pid",)),
+    Variable("m_d_est", "Motor mass of the flexible drive (the mode f_mode is that of the "
+             "motor on the coupling against the stuck table: k_t = m_d_est*(2*pi*f_mode)**2)",
+             "kg", 50.0, min=1e-6, max=1e9, nominal=10.0, kinds=("dual_loop",)),
+    Variable("c_t_est", "Damping of the motor-table coupling the motor loop is designed with",
+             "N.s/m", 0.0, min=0.0, max=1e9, nominal=100.0, kinds=("dual_loop",)),
+    Variable("f_relax", "Largest force amplitude of the drive's ringing, k_t*sqrt(delta**2 + "
+             "(delta'/(2*pi*f_mode))**2) with delta = x_d_meas - x_meas, at which the drive "
+             "counts as relaxed (a pulse starts, a move is read, the maneuver settles only "
+             "from a relaxed drive)", "N", 2.0, min=0.0, min_open=True, max=1e9,
+             nominal=1.0, kinds=("dual_loop",)),
 )
+
+#: Highest f_mode*T of the dual-loop controller: its motor loop, sampled at T, damps a
+#: mode only up to omega*T = pi/2.
+DUAL_LOOP_F_MODE_MAX_T = 0.25
 
 
 def _below_f_p_max(name: str, strict: bool):
@@ -189,6 +207,19 @@ def _mode_dwell_bounded(values: Mapping[str, Any]) -> tuple[str, str] | None:
                       f">= {MODE_PERIODS / (DWELL_MAX * T):g} Hz")
 
 
+def _dual_loop_mode(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    if values["kind"] != "dual_loop":
+        return None
+    f_mode, T = values["f_mode"], values["T"]
+    if f_mode * T <= DUAL_LOOP_F_MODE_MAX_T:
+        return None
+    return "f_mode", (f"f_mode = {f_mode!r} Hz: the dual_loop controller needs the drive's "
+                      f"mode at f_mode <= {DUAL_LOOP_F_MODE_MAX_T:g}/T = "
+                      f"{DUAL_LOOP_F_MODE_MAX_T / T:g} Hz (T = {T!r} s; 0: no motor loop): its "
+                      "motor loop, sampled at T, cannot damp a mode nearer the Nyquist "
+                      "frequency")
+
+
 #: Rules between settings (and the sample period ``T``, where it is given: the
 #: controller FMU's parameter, a scenario's ``[maneuver]`` field).
 CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
@@ -197,6 +228,7 @@ CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
     Constraint(("e_band", "tolerance"), _e_band_above_tolerance),
     Constraint(("t_p_max", "T"), _t_p_max_at_least_T),
     Constraint(("f_mode", "T"), _mode_dwell_bounded),
+    Constraint(("kind", "f_mode", "T"), _dual_loop_mode),
 )
 
 #: The sample period as a parameter of PulseController.fmu.
@@ -214,7 +246,7 @@ REFERENCE_OFFSET = Variable(
 
 #: Controller kinds by number: ``KIND_CODES[n - 1]`` is the kind that ``kind_code = n``
 #: selects (the registry of :mod:`papwc.controllers` has exactly these kinds).
-KIND_CODES: tuple[str, ...] = ("pwc", "papwc", "exact", "pid")
+KIND_CODES: tuple[str, ...] = ("pwc", "papwc", "exact", "pid", "dual_loop")
 
 #: The controller kind as an Integer parameter of PulseController.fmu, for hosts and SSP
 #: readers that cannot set the String ``kind`` (fmpy, OMSimulator). 0 leaves the choice
@@ -283,8 +315,8 @@ CONTROLLER_INPUTS: tuple[Variable, ...] = (
              "maneuver from rest, keeping what it has learned (u is 0 until the next step)",
              "", 0, causality="input", type="Integer"),
     Variable("x_d_meas", "Motor-side position (the plant's motor encoder x_d_meas), read at the "
-             "start of each step; unconnected by default (the table's encoder alone), and no "
-             "controller kind reads it yet", "m", 0.0, causality="input"),
+             "start of each step; unconnected by default (the table's encoder alone); only "
+             "the dual_loop kind reads it", "m", 0.0, causality="input"),
 )
 
 #: Outputs of PulseController.fmu after each step (no direct feedthrough at a

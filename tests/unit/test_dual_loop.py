@@ -1,0 +1,219 @@
+"""The dual-loop controller: its motor loop, its pulses on a flexible drive, its refusals."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import pytest
+
+from papwc.controllers import CONTROLLER_KINDS, Outcome, Reason, make_controller
+from papwc.controllers.dual_loop import F_MODE_MAX_T, DualLoopController, MotorLoop
+from papwc.controllers.settings import ControllerSettings
+from papwc.master import Maneuver, PhysicsSlave, run_controller
+from papwc.model.controller_settings import settings_problems
+from papwc.results.pulses import pulse_ratio
+
+T = 0.01
+#: realism.toml's flexible drive: a 100 kg table, a 50 kg motor, a 20 Hz mode (table stuck).
+DRIVE_20HZ = {"m": 100.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0, "m_d": 50.0, "k_t": 7.896e5,
+              "c_t": 251.3}
+#: The 10 Hz drive of realism_mc.toml.
+DRIVE_10HZ = {**DRIVE_20HZ, "k_t": 1.974e5, "c_t": 125.0}
+
+
+def dual(**kw) -> ControllerSettings:
+    base = {"kind": "dual_loop", "f_p_max": 300.0, "tolerance": 1e-7, "m_est": 150.0,
+            "f_c_est": 80.0, "f_mode": 20.0, "m_d_est": 50.0}
+    return ControllerSettings(**{**base, **kw})
+
+
+def plant(params: dict) -> PhysicsSlave:
+    slave = PhysicsSlave()
+    slave.set_start_values(params)
+    slave.initialize()
+    return slave
+
+
+def step(slave: PhysicsSlave, u: float, k: int) -> None:
+    slave.u = u
+    slave.do_step(k * T, T)
+
+
+def test_the_kind_reads_the_motor_encoder_and_the_others_do_not() -> None:
+    assert CONTROLLER_KINDS["dual_loop"] is DualLoopController
+    assert DualLoopController.reads_x_d_meas
+    assert [k for k, c in CONTROLLER_KINDS.items() if c.reads_x_d_meas] == ["dual_loop"]
+
+
+@pytest.mark.parametrize(("params", "f_mode"), [(DRIVE_20HZ, 20.0), (DRIVE_10HZ, 10.0)])
+def test_the_motor_loop_brings_a_ringing_drive_to_rest(params: dict, f_mode: float) -> None:
+    """One sample of 80 N leaves the drive ringing while the table sticks: free, it still
+    rings with more than 10 N after 0.4 s; with the motor loop it is at rest (below 0.01 N of
+    ringing) within 11 samples, and the table never moves."""
+    rings = {}
+    for closed in (False, True):
+        slave = plant(params)
+        loop = MotorLoop(2.0 * math.pi * f_mode, 50.0, 0.0, T)
+        u = 0.0
+        amplitude = []
+        for k in range(40):
+            loop.observe(slave.x_d_meas - slave.x_meas, u)
+            amplitude.append(loop.amplitude())
+            u = 80.0 if k < 1 else (loop.force() if closed else 0.0)
+            step(slave, u, k)
+            assert slave.x == 0.0  # the table sticks throughout
+        rings[closed] = amplitude
+    assert min(rings[False][10:]) > 10.0
+    assert max(rings[True][12:]) < 0.01 < min(rings[True][:4])
+    # the true drive at the end: relaxed (spring force and motor speed)
+    assert abs(params["k_t"] * (slave.x_d - slave.x)) < 0.01
+    assert abs(slave.plant.v_d) < 1e-6
+
+
+def test_the_rate_estimate_is_exact_on_the_model() -> None:
+    slave = plant(DRIVE_20HZ)
+    loop = MotorLoop(2.0 * math.pi * 20.0, 50.0, 0.0, T)
+    u = 0.0
+    for k, f in enumerate([50.0, -30.0, 20.0, 0.0, 10.0, 0.0]):
+        loop.observe(slave.x_d_meas - slave.x_meas, u)
+        if k:
+            # c_t = 251.3 N.s/m in the plant, 0 in the model (2 % damping): within 5 % of
+            # the motor's speed (measured up to 4.4 %)
+            assert loop.rate == pytest.approx(slave.plant.v_d, rel=0.05, abs=1e-4)
+        u = f
+        step(slave, u, k)
+
+
+def _runs(params: dict, settings: ControllerSettings, targets=(1e-2, 1e-3, 5e-5)):
+    out = []
+    for x_ref in targets:
+        result = run_controller(_slave(params), settings,
+                                Maneuver(x_ref=x_ref, T=T, duration=2.0, iterations=3))
+        assert not result.error
+        out.append((x_ref, result))
+    return out
+
+
+def _slave(params: dict) -> PhysicsSlave:
+    slave = PhysicsSlave()
+    slave.set_start_values(params)
+    return slave
+
+
+@pytest.mark.parametrize(("params", "settings", "targets"), [
+    (DRIVE_20HZ, dual(), (1e-2, 1e-3, 5e-5)),
+    (DRIVE_20HZ, dual(f_mode=21.0), (1e-2, 1e-3, 5e-5)),  # the mode 5 % off
+    # the motor 5 % off, its damping doubled
+    (DRIVE_20HZ, dual(m_d_est=52.5, c_t_est=502.6), (1e-2, 1e-3, 5e-5)),
+])
+def test_on_a_flexible_drive_it_ends_within_1_um_without_runaway(params, settings,
+                                                                 targets) -> None:
+    """The last of three 2 s iterations ends within 1 um of each target; no iteration ends
+    farther than it started and none says settled outside its tolerance; no pulse moves
+    beyond max(1.5*|e|, the smallest pulse) (pulse_ratio <= 1)."""
+    for x_ref, result in _runs(params, settings, targets):
+        for tr in result.traces:
+            e = x_ref - tr.column("x")[-1]
+            assert abs(e) < abs(x_ref)
+            if tr.column("outcome")[-1] == Outcome.SETTLED:
+                assert abs(e) <= settings.tolerance
+        assert max(pulse_ratio(result.traces, params, T)) <= 1.0
+        last = result.traces[-1]
+        assert abs(x_ref - last.column("x")[-1]) <= 1e-6, (x_ref, settings)
+
+
+def test_above_a_quarter_of_the_sample_rate_the_mode_is_refused() -> None:
+    """f_mode above 0.25/T: a settings problem naming f_mode and the bound, and no
+    controller made; at the bound and at 0 (no motor loop) it is made."""
+    s = dual(f_mode=40.0)
+    problems = settings_problems({**s.to_mapping(with_none=True), "T": T})
+    assert problems == [("f_mode", "f_mode = 40.0 Hz: the dual_loop controller needs the "
+                         "drive's mode at f_mode <= 0.25/T = 25 Hz (T = 0.01 s; 0: no motor "
+                         "loop): its motor loop, sampled at T, cannot damp a mode nearer the "
+                         "Nyquist frequency")]
+    with pytest.raises(ValueError, match=r"f_mode = 40.0 Hz: .* \[0, 25\] Hz"):
+        make_controller(s, T)
+    assert F_MODE_MAX_T == 0.25
+    assert make_controller(dual(f_mode=25.0), T).motor is not None
+    assert make_controller(dual(f_mode=0.0), T).motor is None
+    # other kinds keep reading f_mode as before
+    assert settings_problems({**dataclasses.replace(s, kind="exact").to_mapping(
+        with_none=True), "T": T}) == []
+
+
+def test_without_f_mode_it_is_the_exact_controller_on_the_table_encoder() -> None:
+    params = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+    a = run_controller(_slave(params), dual(f_mode=0.0),
+                       Maneuver(x_ref=1e-3, T=T, duration=2.0, iterations=2))
+    exact = dataclasses.replace(dual(f_mode=0.0), kind="exact")
+    b = run_controller(_slave(params), exact,
+                       Maneuver(x_ref=1e-3, T=T, duration=2.0, iterations=2))
+    for ta, tb in zip(a.traces, b.traces, strict=True):
+        assert ta.column("u") == tb.column("u") and ta.column("x") == tb.column("x")
+
+
+def test_a_motor_reading_that_is_not_finite_stops_it() -> None:
+    ctl = make_controller(dual(), T)
+    ctl.x_d_meas = 0.0
+    assert ctl.update(0.0, 0.0, 1e-3) > 0.0  # the first pulse
+    ctl.x_d_meas = math.nan
+    assert ctl.update(T, 0.0, 1e-3) == 0.0
+    assert ctl.outcome == Outcome.STOPPED and ctl.outcome_reason == Reason.INVALID_MEASUREMENT
+    assert ctl.update(2 * T, 0.0, 1e-3) == 0.0
+
+
+def test_a_drive_that_does_not_relax_stops_it_with_zero_force() -> None:
+    """A motor reading that rings on (a drive unlike the model) is never taken as relaxed:
+    after RELAX_MAX_S the controller stops (model_rejected) and outputs 0."""
+    ctl = make_controller(dual(), T)
+    forces = []
+    for k in range(150):
+        # the motor follows the first pulse, then rings on, undamped
+        ctl.x_d_meas = 2e-4 + 1e-4 * math.sin(2.0 * math.pi * 20.0 * k * T) if k else 0.0
+        forces.append(ctl.update(k * T, 0.0, 1e-3))
+    assert ctl.outcome == Outcome.STOPPED and ctl.outcome_reason == Reason.MODEL_REJECTED
+    assert forces[-30:] == [0.0] * 30
+    assert all(abs(f) <= 300.0 for f in forces)
+
+
+def test_its_state_restores_the_run() -> None:
+    """state() into a new controller: the same forces from then on, the same state."""
+    slave = _slave(DRIVE_20HZ)
+    slave.initialize()
+    a = make_controller(dual(), T)
+    for k in range(37):
+        a.x_d_meas = slave.x_d_meas
+        step(slave, a.update(k * T, slave.x_meas, 1e-3), k)
+    b = make_controller(dual(), T)
+    b.set_state(a.state())
+    assert b.state() == a.state()
+    for k in range(37, 120):
+        a.x_d_meas = b.x_d_meas = slave.x_d_meas
+        u = a.update(k * T, slave.x_meas, 1e-3)
+        assert b.update(k * T, slave.x_meas, 1e-3) == u
+        step(slave, u, k)
+    assert a.state() == b.state()
+
+
+def test_a_motor_encoder_that_does_not_follow_the_first_pulse_stops_it() -> None:
+    """The motor reading left at 0 (the input not connected) on the 20 Hz drive: the sample
+    after the first pulse's first force shows no motor move, the controller stops
+    (invalid_measurement) before its motor loop acts, and the table moves no more than that
+    pulse alone moves it."""
+    slave = _slave(DRIVE_20HZ)
+    slave.initialize()
+    ctl = make_controller(dual(), T)
+    forces = []
+    for k in range(100):
+        ctl.x_d_meas = 0.0  # not connected
+        u = ctl.update(k * T, slave.x_meas, 1e-3)
+        forces.append(u)
+        step(slave, u, k)
+    assert ctl.outcome == Outcome.STOPPED and ctl.outcome_reason == Reason.INVALID_MEASUREMENT
+    assert forces[0] > 0.0 and forces[1:] == [0.0] * 99
+    alone = _slave(DRIVE_20HZ)
+    alone.initialize()
+    for k in range(100):
+        step(alone, forces[0] if k == 0 else 0.0, k)
+    assert slave.x == alone.x < 1e-3
