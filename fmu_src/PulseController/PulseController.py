@@ -25,7 +25,7 @@ from papwc_pulse_controller.controllers import (
 )
 from papwc_pulse_controller.controllers.settings import ControllerSettings
 from papwc_pulse_controller.fmi.glue import CheckedSlave
-from papwc_pulse_controller.model.settings import (
+from papwc_pulse_controller.model.controller_settings import (
     CONTROLLER_CONSTRAINTS,
     CONTROLLER_SETTINGS,
     PULSE_CONTROLLER_VARIABLES,
