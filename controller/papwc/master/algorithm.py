@@ -19,7 +19,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
 
 from papwc.errors import FmuError
 from papwc.master.slave import Slave
@@ -57,9 +56,8 @@ class FixedStepAlgorithm:
             raise FmuError(f"step size {step_size!r} s: must be > 0")
         self.step_size = float(step_size)
         self.timing = timing
+        self._plan: list[_SlaveStep] = []
         self._after: Callable[[Slave], None] | None = None
-        self._step: Callable[[float], None] = lambda t: None
-        self._run: Callable[..., None] = lambda k0, k1, t0, done, at: None
 
     def setup(
         self,
@@ -72,75 +70,66 @@ class FixedStepAlgorithm:
         ``after_step(slave)``, if given, is called after each slave's step (the
         manipulators act there).
         """
-        self._after = after_step
-        namespace: dict[str, Any] = {"h": self.step_size, "after": after_step}
-        transfers: list[str] = []
-        steps: list[str] = []
-        for j, slave in enumerate(slaves):
+        plan = []
+        for slave in slaves:
             links = [c for c in connections if c.target is slave]
-            namespace[f"slave{j}"] = slave
-            namespace[f"do_step{j}"] = slave.do_step
-            lines: list[str] = []
-            if links:
-                namespace[f"set{j}"] = slave.input_setter([c.input for c in links])
-                args = []
-                for i, c in enumerate(links):
-                    namespace[f"source{j}_{i}"] = c.source
-                    index = c.source.watch([c.output])[0]
-                    args.append(f"source{j}_{i}.values[{index}]")
-                lines.append(f"set{j}({', '.join(args)})")
-            transfers.append(lines)
-            steps.append([f"do_step{j}(t, h)"]
-                         + ([f"after(slave{j})"] if after_step is not None else []))
-        if self.timing == "immediate":
-            body = [line for tr, st in zip(transfers, steps, strict=True) for line in tr + st]
-        else:
-            body = [line for tr in transfers for line in tr] + [line for st in steps
-                                                                for line in st]
-        # One function made of the plan's statements, as dataclasses makes its methods:
-        # a step costs no loop over slaves and no test of what the plan holds. ``run``
-        # is the same statements in a loop over steps k0 <= k < k1 from t0, calling
-        # each of ``done(k, t_(k+1))`` after a step and putting a failed step's k in
-        # ``at[0]``; the parts are its local names (default arguments).
-        lines = body or ["pass"]
-        namespace["FmuError"] = FmuError
-        local = ", ".join(f"{name}={name}" for name in namespace)
-        source = ("def step(t):\n" + "".join(f"    {line}\n" for line in lines)
-                  + f"def run(k0, k1, t0, done, at, {local}):\n"
-                  + "    t = t0 + k0 * h\n"
-                  + "    for k in range(k0, k1):\n"
-                  + "        try:\n"
-                  + "".join(f"            {line}\n" for line in lines)
-                  + "        except FmuError:\n"
-                  + "            at[0] = k\n"
-                  + "            raise\n"
-                  + "        t = t0 + (k + 1) * h\n"
-                  + "        for f in done:\n"
-                  + "            f(k, t)\n")
-        exec(source, namespace)  # noqa: S102 - the statements are made here, from indexes
-        self._step = namespace["step"]
-        self._run = namespace["run"]
+            setter = slave.input_setter([c.input for c in links]) if links else None
+            sources = tuple((c.source, c.source.watch([c.output])[0]) for c in links)
+            plan.append(_SlaveStep(slave, setter, sources))
+        self._plan = plan
+        self._after = after_step
 
     def step(self, t: float) -> None:
         """One communication step from ``t``: transfer, step every slave, call ``after_step``.
+
+        With ``"immediate"`` timing each slave takes its inputs just before it steps;
+        with ``"delayed"`` every slave takes them before any steps.
 
         Raises
         ------
         FmuError
             From the slave whose step failed.
         """
-        self._step(t)
+        h = self.step_size
+        after = self._after
+        if self.timing == "immediate":
+            for part in self._plan:
+                part.transfer()
+                part.slave.do_step(t, h)
+                if after is not None:
+                    after(part.slave)
+            return
+        for part in self._plan:
+            part.transfer()
+        for part in self._plan:
+            part.slave.do_step(t, h)
+            if after is not None:
+                after(part.slave)
 
-    def run(self, k0: int, k1: int, t0: float, done: Sequence[Callable[[int, float], None]],
-            at: list[int]) -> None:
-        """Steps ``k0 <= k < k1`` from ``t_k = t0 + k*h``: what :meth:`step` does for each,
-        then each of ``done(k, t_(k+1))``.
 
-        Raises
-        ------
-        FmuError
-            From the slave whose step failed; ``at[0]`` is then that step's k.
-        """
-        self._run(k0, k1, t0, done, at)
+class _SlaveStep:
+    """One slave of the plan: the setter of its connected inputs and where their values are.
 
+    ``sources`` holds, per connected input in the setter's order, the source slave and
+    the index of the source variable in its :attr:`~papwc.master.slave.Slave.values`.
+    """
 
+    __slots__ = ("setter", "slave", "sources")
+
+    def __init__(self, slave: Slave, setter: Callable[..., None] | None,
+                 sources: tuple[tuple[Slave, int], ...]) -> None:
+        self.slave = slave
+        self.setter = setter
+        self.sources = sources
+
+    def transfer(self) -> None:
+        """Set the slave's connected inputs from the sources' current values."""
+        setter = self.setter
+        if setter is None:
+            return
+        sources = self.sources
+        if len(sources) == 1:
+            ((source, index),) = sources
+            setter(source.values[index])
+        else:
+            setter(*[source.values[index] for source, index in sources])
