@@ -14,13 +14,22 @@ a used folder first removes the files an earlier run wrote there
 from __future__ import annotations
 
 import math
+import os
 import re
+import time
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 
 from papwc.interrupts import Terminated
 from papwc.master import RunResult
-from papwc.output_files import lock_folder, make_folder, remove_file, write_rows, write_text
+from papwc.output_files import (
+    lock_folder,
+    make_folder,
+    refuse_link,
+    remove_file,
+    write_rows,
+    write_text,
+)
 from papwc.results.pulses import ROW_COLUMNS, PulseBound
 from papwc.results.summary import summarize
 from papwc.scenario import Scenario

@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from papwc.master.trace import Trace
 from papwc.controllers import Mode
+from papwc.master.trace import Trace
 from papwc.model.controller_settings import OUTCOME_REASONS, OUTCOMES
+
 
 def summarize(trace: Trace, tolerance: float, window: float = 0.25) -> dict[str, Any]:
     """Metrics of one iteration.
