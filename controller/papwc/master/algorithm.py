@@ -19,10 +19,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 from papwc.errors import FmuError
 from papwc.master.slave import Slave
 from papwc.model.maneuver import TIMINGS
+
+if TYPE_CHECKING:
+    from papwc.master.execution import Execution
 
 __all__ = ["Connection", "FixedStepAlgorithm", "TIMINGS"]
 
@@ -56,7 +60,10 @@ class FixedStepAlgorithm:
             raise FmuError(f"step size {step_size!r} s: must be > 0")
         self.step_size = float(step_size)
         self.timing = timing
-        self._plan: list[_SlaveStep] = []
+        #: Per slave in stepping order: the slave, its ``do_step`` and its connections as
+        #: (source, index of the source variable in ``source.values``, setter of the input).
+        self._plan: list[tuple[Slave, Callable[[float, float], None],
+                               tuple[tuple[Slave, int, Callable[[Any], None]], ...]]] = []
         self._after: Callable[[Slave], None] | None = None
 
     def setup(
@@ -72,64 +79,57 @@ class FixedStepAlgorithm:
         """
         plan = []
         for slave in slaves:
-            links = [c for c in connections if c.target is slave]
-            setter = slave.input_setter([c.input for c in links]) if links else None
-            sources = tuple((c.source, c.source.watch([c.output])[0]) for c in links)
-            plan.append(_SlaveStep(slave, setter, sources))
+            transfers = []
+            for c in connections:
+                if c.target is slave:
+                    setter = slave.input_setter([c.input])
+                    transfers.append((c.source, c.source.watch([c.output])[0], setter))
+            plan.append((slave, slave.do_step, tuple(transfers)))
         self._plan = plan
         self._after = after_step
 
-    def step(self, t: float) -> None:
-        """One communication step from ``t``: transfer, step every slave, call ``after_step``.
+    def run(self, execution: Execution, n: int) -> None:
+        """Do ``n`` communication steps of ``execution`` from its step ``execution.k``.
 
-        With ``"immediate"`` timing each slave takes its inputs just before it steps;
-        with ``"delayed"`` every slave takes them before any steps.
+        Each step k (from ``t_k = t0 + k*h``, ``t0`` the execution's start time)
+        transfers, steps every slave and calls ``after_step``; with ``"immediate"``
+        timing each slave takes its inputs just before it steps, with ``"delayed"``
+        every slave takes them before any steps. Each connection sets its input by a
+        setter of that input alone, with the source's current value. Then
+        ``execution.k`` becomes k + 1 and every observer's ``step_complete(k,
+        t_(k+1))`` is called (an observer that raises stops the run there).
 
         Raises
         ------
         FmuError
-            From the slave whose step failed.
+            From the slave whose step failed; ``execution.k`` is then that step's k.
         """
         h = self.step_size
         after = self._after
-        if self.timing == "immediate":
-            for part in self._plan:
-                part.transfer()
-                part.slave.do_step(t, h)
-                if after is not None:
-                    after(part.slave)
-            return
-        for part in self._plan:
-            part.transfer()
-        for part in self._plan:
-            part.slave.do_step(t, h)
-            if after is not None:
-                after(part.slave)
-
-
-class _SlaveStep:
-    """One slave of the plan: the setter of its connected inputs and where their values are.
-
-    ``sources`` holds, per connected input in the setter's order, the source slave and
-    the index of the source variable in its :attr:`~papwc.master.slave.Slave.values`.
-    """
-
-    __slots__ = ("setter", "slave", "sources")
-
-    def __init__(self, slave: Slave, setter: Callable[..., None] | None,
-                 sources: tuple[tuple[Slave, int], ...]) -> None:
-        self.slave = slave
-        self.setter = setter
-        self.sources = sources
-
-    def transfer(self) -> None:
-        """Set the slave's connected inputs from the sources' current values."""
-        setter = self.setter
-        if setter is None:
-            return
-        sources = self.sources
-        if len(sources) == 1:
-            ((source, index),) = sources
-            setter(source.values[index])
-        else:
-            setter(*[source.values[index] for source, index in sources])
+        plan = self._plan
+        immediate = self.timing == "immediate"
+        complete = [o.step_complete for o in execution.observers]
+        t0 = execution.start_time
+        k0 = execution.k
+        steps_done = k0
+        try:
+            for k in range(k0, k0 + max(n, 0)):
+                t = t0 + k * h
+                for slave, do_step, transfers in plan:
+                    for source, index, set_input in transfers:
+                        set_input(source.values[index])
+                    if immediate:
+                        do_step(t, h)
+                        if after is not None:
+                            after(slave)
+                if not immediate:
+                    for slave, do_step, _ in plan:
+                        do_step(t, h)
+                        if after is not None:
+                            after(slave)
+                steps_done = k + 1
+                t = t0 + steps_done * h
+                for done in complete:
+                    done(k, t)
+        finally:
+            execution.k = steps_done

@@ -146,21 +146,14 @@ class Execution:
             When a slave's step fails; observers are told (``step_failed``) first,
             and ``k`` stays at the failed step.
         """
-        complete = [o.step_complete for o in self.observers]
-        step = self.algorithm.step
-        t0, h = self.start_time, self.algorithm.step_size
-        for k in range(self.k, self.k + max(n, 0)):
-            try:
-                step(t0 + k * h)
-            except FmuError:
-                t = t0 + k * h
-                for o in self.observers:
-                    o.step_failed(k, t)
-                raise
-            self.k = k + 1
-            t = t0 + (k + 1) * h
-            for done in complete:
-                done(k, t)
+        try:
+            self.algorithm.run(self, n)
+        except FmuError:
+            k = self.k
+            t = self.start_time + k * self.algorithm.step_size
+            for o in self.observers:
+                o.step_failed(k, t)
+            raise
 
     def finish(self) -> None:
         """Tell the observers the run has ended."""

@@ -80,29 +80,29 @@ class Slave(Protocol):
         ...
 
 
-def _list_reader(paths: Sequence[str]) -> Callable[[Any], list[Any]]:
-    """``f(obj)`` returning ``[obj.<path>, ...]`` as a new list (dotted paths allowed).
+def _attribute_reader(paths: Sequence[str]) -> Callable[[Any], Sequence[Any]]:
+    """``f(obj)`` returning ``(obj.<path>, ...)`` (dotted paths allowed).
 
-    One :func:`operator.attrgetter` reads all the paths in a single call.
+    Two or more paths are read by one :func:`operator.attrgetter`, a single call
+    without a Python frame: the cheapest way to read several attributes.
     """
     for path in paths:
         if not all(part.isidentifier() for part in path.split(".")):
             raise ValueError(f"not an attribute path: {path!r}")
+    if len(paths) >= 2:
+        return attrgetter(*paths)
     if not paths:
-        return lambda obj: []
-    if len(paths) == 1:
-        get_one = attrgetter(paths[0])
-        return lambda obj: [get_one(obj)]
-    get_all = attrgetter(*paths)
-    return lambda obj: list(get_all(obj))
+        return lambda obj: ()
+    get_one = attrgetter(paths[0])
+    return lambda obj: (get_one(obj),)
 
 
 class _WatchedAttributes:
     """Watching and setting variables that are attributes of a Python object.
 
     A subclass maps each variable to an attribute path (:meth:`_path`), or gives
-    its own reader (:meth:`_reader`); the watched values are read by one call of it
-    into a new list at each refresh.
+    its own reader (:meth:`_reader`); each refresh reads the watched values by one
+    call of it into a new list.
     """
 
     name: str
@@ -111,7 +111,7 @@ class _WatchedAttributes:
     def _init_watch(self) -> None:
         self.values = []
         self._watched: list[str] = []
-        self._read: Callable[[Any], list[Any]] = lambda obj: []
+        self._read: Callable[[Any], Sequence[Any]] = lambda obj: ()
 
     def watch(self, names: Sequence[str]) -> list[int]:
         """Read ``names`` into :attr:`values` after each step; return their indexes."""
@@ -128,7 +128,7 @@ class _WatchedAttributes:
         return indexes
 
     def _refresh(self) -> None:
-        self.values = self._read(self)
+        self.values = list(self._read(self))
 
     def _attribute_setter(self, names: Sequence[str]) -> Callable[..., None]:
         """A setter of attribute inputs that also shows the values if they are watched."""
@@ -153,10 +153,10 @@ class _WatchedAttributes:
 
         return set_all
 
-    def _reader(self, names: Sequence[str]) -> Callable[[Any], list[Any]]:
-        """``read(self)``: the values of ``names`` as a new list (by default the attributes
+    def _reader(self, names: Sequence[str]) -> Callable[[Any], Sequence[Any]]:
+        """``read(self)``: the values of ``names`` in order (by default the attributes
         :meth:`_path` names)."""
-        return _list_reader([self._path(name) for name in names])
+        return _attribute_reader([self._path(name) for name in names])
 
     def _path(self, name: str) -> str:
         raise NotImplementedError
@@ -191,7 +191,7 @@ class PhysicsSlave(_WatchedAttributes):
         """Causality of every variable."""
         return {v.name: v.causality for v in PLANT_VARIABLES}
 
-    def _reader(self, names: Sequence[str]) -> Callable[[Any], list[Any]]:
+    def _reader(self, names: Sequence[str]) -> Callable[[Any], Sequence[Any]]:
         """Outputs from the plant (:func:`papwc.model.dynamics.output_reader`), the input
         ``u`` and the parameters from this slave."""
         if all(name in OUTPUTS for name in names):
@@ -329,7 +329,6 @@ class ControllerSlave(_WatchedAttributes):
         for key, value in self._start.items():
             setattr(self, key, value)
         self.u = 0.0
-        self._refresh_outputs()
         self._refresh()
 
     def restart(self, start_time: float = 0.0) -> None:
@@ -344,16 +343,18 @@ class ControllerSlave(_WatchedAttributes):
         self.u = controller.update(t, self.x_meas, self.x_ref)
         if controller.idle_samples > idle:
             return  # a sample only counted: every output is the one of the last sample
-        self._refresh_outputs()
         self._refresh()
 
-    def _refresh_outputs(self) -> None:
+    def _refresh(self) -> None:
+        """Take the controller's outputs (its estimates when they changed), then read the
+        watched values."""
         controller = self.controller
         values = self.out.__dict__
         if controller.revision != self._revision:
             values.update(controller.estimates())
             self._revision = controller.revision
         values.update(controller.outputs())
+        self.values = list(self._read(self))
 
     def close(self) -> None:
         """Nothing to release."""
