@@ -4,7 +4,8 @@ Standard library only (bundled into FrictionPlant.fmu). :class:`Plant` holds
 the plant's parameters and its full state, and advances it over a
 communication step with the force held (:meth:`Plant.step`). FrictionPlant.fmu
 and the master's in-process plant (:class:`papwc.master.slave.PhysicsSlave`)
-both step a :class:`Plant`, so they give the same trajectory to the last bit.
+both step a :class:`Plant`, so they give the same trajectory to the last bit, and
+both read its outputs by the model layer's names from :data:`OUTPUTS`.
 
 How a step is computed depends on the deviations present
 (:mod:`papwc.model.effects`):
