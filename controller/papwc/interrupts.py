@@ -50,8 +50,8 @@ def deferred_interrupt() -> Iterator[None]:
     An FMU made with pythonfmu runs its Python code in this interpreter: a
     KeyboardInterrupt raised there becomes fmi2Fatal (the instance is lost and
     the run goes on with the next controller). Within this block the first
-    Ctrl-C or SIGTERM only sets a flag, which the plant's step checks (see
-    :func:`run_scenario`; ``papwc cosim`` checks it after every row); a second
+    Ctrl-C or SIGTERM only sets a flag, which the run looks at between two steps
+    (:class:`papwc.master.observers.StepGuard`; ``papwc cosim`` after every row); a second
     one raises at once. SIGTERM raises :class:`Terminated`, a KeyboardInterrupt.
     Outside the main thread, or where Ctrl-C is ignored (battery workers),
     nothing changes; SIGTERM is deferred only where it has its default action.

@@ -14,8 +14,8 @@ from collections.abc import Callable
 from pathlib import Path
 
 from papwc.errors import FmuError
-from papwc.interrupts import _CLOCK_EVERY, _INTERRUPT, RunTimeout, deferred_interrupt, interruption
-from papwc.master import FmuSlave, PhysicsSlave, RunResult, Slave, run_controller
+from papwc.interrupts import deferred_interrupt
+from papwc.master import FmuSlave, PhysicsSlave, RunResult, Slave, StepGuard, run_controller
 from papwc.output_files import refuse_link
 from papwc.scenario import Scenario
 
@@ -40,31 +40,6 @@ def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> P
     refuse_link(Path(out) / "fmu")  # a folder the command fills is not followed
     return current_fmu("FrictionPlant", Path(out) / "fmu")
 
-
-
-def _guard_steps(slave, deadline: float | None, limit: float | None):
-    """Make ``slave.do_step`` raise after a deferred Ctrl-C, and past ``deadline``.
-
-    Raises KeyboardInterrupt (Ctrl-C, checked every step) or :class:`RunTimeout`
-    (``time.monotonic() > deadline``, checked every ``_CLOCK_EVERY`` steps),
-    always between two steps.
-    """
-    do_step = slave.do_step
-    count = [0]
-    interrupt = _INTERRUPT
-
-    def checked_step(t: float, h: float) -> None:
-        do_step(t, h)
-        if interrupt["requested"]:
-            raise interruption()
-        if deadline is not None:
-            count[0] += 1
-            if count[0] % _CLOCK_EVERY == 0 and time.monotonic() > deadline:
-                raise RunTimeout(f"timed out: the run took longer than {limit:g} s "
-                                 f"(stopped at t = {t + h!r} s)")
-
-    slave.do_step = checked_step
-    return slave
 
 
 def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
@@ -97,7 +72,6 @@ def release_plant(slave: Slave, fmu: str | os.PathLike | None,
     key = (str(fmu), str(unzip_dir))
     if (unzip_dir is not None and isinstance(slave, FmuSlave) and slave.reusable
             and key not in _IDLE_PLANTS):
-        slave.__dict__.pop("do_step", None)  # the guard of _guard_steps
         _IDLE_PLANTS[key] = slave
         return
     slave.close()
@@ -120,9 +94,10 @@ def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike 
     with deferred_interrupt():
         for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
             slave = make_plant(scenario, plant, fmu, unzip_dir)
-            _guard_steps(slave, deadline, timeout)
+            guard = StepGuard(deadline, timeout)
             try:
-                results.append(run_controller(slave, settings, scenario.maneuver, label))
+                results.append(run_controller(slave, settings, scenario.maneuver, label,
+                                              observers=[guard]))
             finally:
                 release_plant(slave, fmu, unzip_dir)
             if progress is not None:

@@ -260,3 +260,55 @@ def test_trace_columns_rows_arrays_and_csv(tmp_path):
     s = summarize(trace, 2e-5)
     assert s["final_error_m"] == 0.01 - trace.column("x")[-1]
     assert s["pulses"] == trace.column("pulses")[-1]
+
+
+def test_the_in_process_plant_reads_every_output_from_the_plant_object() -> None:
+    """PhysicsSlave's outputs are Plant.outputs() (papwc.model.dynamics.OUTPUTS) after every
+    step, by the names of PLANT_OUTPUTS, with deviations and noisy encoders."""
+    from papwc.model.dynamics import OUTPUTS
+    from papwc.model.plant import PLANT_OUTPUTS
+
+    names = [v.name for v in PLANT_OUTPUTS]
+    assert list(OUTPUTS) == names
+    slave = PhysicsSlave()
+    slave.set_start_values({"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3,
+                            "tau_u": 2e-3, "seed": 3, "noise_std": 2e-7,
+                            "x_resolution": 1e-7, "x_d_noise_std": 1e-7,
+                            "x_d_resolution": 1e-7})
+    indexes = slave.watch(names + ["u", "m"])
+    set_u = slave.input_setter(["u"])
+    slave.initialize(0.0)
+    for k, u in enumerate([300.0] * 5 + [0.0] * 10 + [-200.0] * 4 + [0.0] * 20):
+        set_u(u)
+        slave.do_step(k * 0.01, 0.01)
+        expected = {**slave.plant.outputs(), "u": u, "m": 100.0}
+        assert dict(zip(names + ["u", "m"], [slave.values[i] for i in indexes],
+                        strict=True)) == expected, k
+    assert slave.values[indexes[names.index("x_d")]] != slave.values[indexes[0]]
+
+
+def test_a_step_guard_stops_a_run_between_two_steps() -> None:
+    """StepGuard, an observer: past its deadline the run stops at the first look at the clock
+    (every _CLOCK_EVERY steps), and a deferred Ctrl-C stops it after the step under way."""
+    import signal
+    import time
+
+    from papwc.interrupts import _CLOCK_EVERY, _INTERRUPT, RunTimeout
+    from papwc.master import ClosedLoop, StepGuard
+
+    settings = ControllerSettings(kind="papwc", t_p_max=0.03)
+    guard = StepGuard(deadline=time.monotonic() - 1.0, limit=0.5)
+    plant = PhysicsSlave()
+    with pytest.raises(RunTimeout, match=r"took longer than 0.5 s \(stopped at t = 0.56"):
+        run_controller(plant, settings, Maneuver(iterations=3), observers=[guard])
+    assert guard._steps == _CLOCK_EVERY == 256
+    loop = ClosedLoop(PhysicsSlave(), ControllerSlave(make_controller(settings, 0.01)),
+                      Maneuver(), observers=[StepGuard()])
+    _INTERRUPT["requested"] = signal.SIGINT
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            loop.iteration(1)
+    finally:
+        _INTERRUPT["requested"] = 0
+    assert loop.execution.k == 1
+    assert len(loop.observer._plant_rows) == 2  # the initial state and the step done

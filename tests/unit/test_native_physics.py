@@ -24,6 +24,7 @@ boundary (every rule of PLANT_CONSTRAINTS is reached), and the rules' data in
 from __future__ import annotations
 
 import math
+import random
 import re
 import sys
 from pathlib import Path
@@ -45,6 +46,7 @@ from papwc.model.plant import (
     OFF_OR_AT_LEAST,
     PLANT_CONSTRAINTS,
     PLANT_DEFAULTS,
+    PLANT_OUTPUTS,
     PLANT_PARAMETERS,
     PLANT_VARIABLES,
     plant_problems,
@@ -117,6 +119,31 @@ def run_both(native: NativeLibrary, params: dict[str, Any],
     for (u, h), view in zip(steps[copy_at:], tail, strict=True):
         assert other.step(u, h) == py.step(u, h)
         assert native_view(other) == python_view(py) == view
+
+
+@pytest.mark.parametrize("params", [
+    {},
+    {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3, "seed": 3, "noise_std": 2e-7,
+     "x_resolution": 1e-7, "x_d_noise_std": 1e-7, "x_d_resolution": 1e-7},
+], ids=["eq1", "flexible_noisy"])
+def test_every_output_of_the_model_layer_is_the_c_plants_by_name(
+        native: NativeLibrary, params: dict[str, Any]) -> None:
+    """Plant.outputs() (papwc.model.dynamics.OUTPUTS, by the names of PLANT_OUTPUTS) is the
+    C plant's FpOutputs field for field, bit for bit, at every communication point."""
+    py = Plant(params)
+    c = NativePlant(native, params)
+    rng = random.Random(7)
+
+    def c_outputs() -> dict[str, str]:
+        y = c.outputs()
+        return {v.name: bits(bool(getattr(y, v.name)) if v.type == "Boolean"
+                             else getattr(y, v.name)) for v in PLANT_OUTPUTS}
+
+    assert list(py.outputs()) == [v.name for v in PLANT_OUTPUTS]
+    for k in range(80):
+        assert c_outputs() == {name: bits(value) for name, value in py.outputs().items()}, k
+        u = rng.choice([0.0, 90.0, -140.0, 160.0, 300.0])
+        assert py.step(u, 0.01) is None and c.step(u, 0.01) is None
 
 
 # --- the generated header -------------------------------------------------------------------------

@@ -22,9 +22,13 @@ def plant_forces(n: int) -> list[float]:
     return [cycle[k % len(cycle)] for k in range(n)]
 
 
-def fmpy_loop(fmu_path: Path, unzip_root: Path, input_name: str, output_name: str
+def fmpy_loop(fmu_path: Path, unzip_root: Path, input_name: str, output_name: str,
+              timer: Callable[[], int] = time.perf_counter_ns,
               ) -> tuple[Callable[[list[float]], float], Callable[[], None]]:
-    """Instantiate an FMU with fmpy; return (loop(forces) -> s per call, close())."""
+    """Instantiate an FMU with fmpy; return (loop(forces) -> s per call, close()).
+
+    ``timer`` is the clock in ns (default: wall time, ``time.perf_counter_ns``).
+    """
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
 
@@ -41,27 +45,30 @@ def fmpy_loop(fmu_path: Path, unzip_root: Path, input_name: str, output_name: st
     slave.setupExperiment(startTime=0.0)
     slave.enterInitializationMode()
     slave.exitInitializationMode()
-    return slave_methods_loop(slave, [vr[input_name]], [vr[output_name]], {"k": 0}, 0.01)
+    return slave_methods_loop(slave, [vr[input_name]], [vr[output_name]], {"k": 0}, 0.01,
+                              timer)
 
 
 def slave_methods_loop(slave: Any, vr_in: list[int], vr_out: list[int], clock: dict[str, int],
-                       h: float) -> tuple[Callable[[list[float]], float], Callable[[], None]]:
+                       h: float, timer: Callable[[], int] = time.perf_counter_ns,
+                       ) -> tuple[Callable[[list[float]], float], Callable[[], None]]:
     """(loop(forces) -> s per step, close()) of an initialized fmpy ``FMU2Slave``.
 
     Each step is ``setReal(vr_in, [u])``, ``doStep(t, h)``, ``getReal(vr_out)`` through the
-    slave's methods, as a script calls them; ``clock["k"]`` counts the steps taken so far.
+    slave's methods, as a script calls them; ``clock["k"]`` counts the steps taken so far;
+    ``timer`` is the clock in ns.
     """
 
     def loop(forces: list[float]) -> float:
         set_real, do_step, get_real = slave.setReal, slave.doStep, slave.getReal
         k0 = clock["k"]
         with gc_paused():
-            start = time.perf_counter_ns()
+            start = timer()
             for i, u in enumerate(forces):
                 set_real(vr_in, [u])
                 do_step((k0 + i) * h, h)
                 get_real(vr_out)
-            elapsed = time.perf_counter_ns() - start
+            elapsed = timer() - start
         clock["k"] = k0 + len(forces)
         return elapsed * 1e-9 / len(forces)
 

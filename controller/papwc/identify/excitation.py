@@ -234,7 +234,7 @@ def apply_to_fmu(fmu: str | os.PathLike, u: np.ndarray, h: float,
     from papwc.errors import FmuError
     from papwc.interrupts import deferred_interrupt
     from papwc.master.fmu import FmuSlave
-    from papwc.scenario_run import _guard_steps
+    from papwc.master.observers import StepGuard
 
     slave = FmuSlave(fmu)
     try:
@@ -249,11 +249,12 @@ def apply_to_fmu(fmu: str | os.PathLike, u: np.ndarray, h: float,
         set_force = slave.input_setter([force])
         slave.initialize(0.0)
         x = [float(slave.values[0])]
+        guard = StepGuard()
         with deferred_interrupt():
-            _guard_steps(slave, None, None)
             for k, f in enumerate(u):
                 set_force(float(f))
                 slave.do_step(k * h, h)
+                guard.check((k + 1) * h)
                 x.append(float(slave.values[0]))
     finally:
         slave.close()

@@ -6,7 +6,7 @@
 - :mod:`.fmu`: any FMI 2.0 Co-Simulation FMU (:class:`~.fmu.FmuSlave`);
 - :mod:`.algorithm`: stepping over connections, immediate or delayed;
 - :mod:`.observers` and :mod:`.trace`: recording (named columns; the metrics read off a
-  trace are :mod:`papwc.results`);
+  trace are :mod:`papwc.results`), and the step guard that stops a run between two steps;
 - :mod:`.manipulators`: what changes between slaves (measurement noise);
 - :mod:`.execution`: the parts assembled;
 - :mod:`.closed_loop`: closed-loop runs of a maneuver over iterations;
@@ -27,7 +27,7 @@ from papwc.master.closed_loop import (
 from papwc.master.execution import Execution
 from papwc.master.fmu import FmuSlave
 from papwc.master.manipulators import MeasurementNoise
-from papwc.master.observers import TraceObserver
+from papwc.master.observers import StepGuard, TraceObserver
 from papwc.master.slave import ControllerSlave, PhysicsSlave, SignalSlave, Slave
 from papwc.master.trace import TRACE_COLUMNS, Trace
 
@@ -46,6 +46,7 @@ __all__ = [
     "RunResult",
     "SignalSlave",
     "Slave",
+    "StepGuard",
     "Trace",
     "TraceObserver",
     "run_closed_loop",

@@ -19,11 +19,14 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from papwc.errors import FmuError
 from papwc.master.slave import Slave
 from papwc.model.maneuver import TIMINGS
+
+if TYPE_CHECKING:
+    from papwc.master.execution import Execution
 
 __all__ = ["Connection", "FixedStepAlgorithm", "TIMINGS"]
 
@@ -57,9 +60,11 @@ class FixedStepAlgorithm:
             raise FmuError(f"step size {step_size!r} s: must be > 0")
         self.step_size = float(step_size)
         self.timing = timing
+        #: Per slave in stepping order: the slave, its ``do_step`` and its connections as
+        #: (source, index of the source variable in ``source.values``, setter of the input).
+        self._plan: list[tuple[Slave, Callable[[float, float], None],
+                               tuple[tuple[Slave, int, Callable[[Any], None]], ...]]] = []
         self._after: Callable[[Slave], None] | None = None
-        self._step: Callable[[float], None] = lambda t: None
-        self._run: Callable[..., None] = lambda k0, k1, t0, done, at: None
 
     def setup(
         self,
@@ -72,75 +77,59 @@ class FixedStepAlgorithm:
         ``after_step(slave)``, if given, is called after each slave's step (the
         manipulators act there).
         """
+        plan = []
+        for slave in slaves:
+            transfers = []
+            for c in connections:
+                if c.target is slave:
+                    setter = slave.input_setter([c.input])
+                    transfers.append((c.source, c.source.watch([c.output])[0], setter))
+            plan.append((slave, slave.do_step, tuple(transfers)))
+        self._plan = plan
         self._after = after_step
-        namespace: dict[str, Any] = {"h": self.step_size, "after": after_step}
-        transfers: list[str] = []
-        steps: list[str] = []
-        for j, slave in enumerate(slaves):
-            links = [c for c in connections if c.target is slave]
-            namespace[f"slave{j}"] = slave
-            namespace[f"do_step{j}"] = slave.do_step
-            lines: list[str] = []
-            if links:
-                namespace[f"set{j}"] = slave.input_setter([c.input for c in links])
-                args = []
-                for i, c in enumerate(links):
-                    namespace[f"source{j}_{i}"] = c.source
-                    index = c.source.watch([c.output])[0]
-                    args.append(f"source{j}_{i}.values[{index}]")
-                lines.append(f"set{j}({', '.join(args)})")
-            transfers.append(lines)
-            steps.append([f"do_step{j}(t, h)"]
-                         + ([f"after(slave{j})"] if after_step is not None else []))
-        if self.timing == "immediate":
-            body = [line for tr, st in zip(transfers, steps, strict=True) for line in tr + st]
-        else:
-            body = [line for tr in transfers for line in tr] + [line for st in steps
-                                                                for line in st]
-        # One function made of the plan's statements, as dataclasses makes its methods:
-        # a step costs no loop over slaves and no test of what the plan holds. ``run``
-        # is the same statements in a loop over steps k0 <= k < k1 from t0, calling
-        # each of ``done(k, t_(k+1))`` after a step and putting a failed step's k in
-        # ``at[0]``; the parts are its local names (default arguments).
-        lines = body or ["pass"]
-        namespace["FmuError"] = FmuError
-        local = ", ".join(f"{name}={name}" for name in namespace)
-        source = ("def step(t):\n" + "".join(f"    {line}\n" for line in lines)
-                  + f"def run(k0, k1, t0, done, at, {local}):\n"
-                  + "    t = t0 + k0 * h\n"
-                  + "    for k in range(k0, k1):\n"
-                  + "        try:\n"
-                  + "".join(f"            {line}\n" for line in lines)
-                  + "        except FmuError:\n"
-                  + "            at[0] = k\n"
-                  + "            raise\n"
-                  + "        t = t0 + (k + 1) * h\n"
-                  + "        for f in done:\n"
-                  + "            f(k, t)\n")
-        exec(source, namespace)  # noqa: S102 - the statements are made here, from indexes
-        self._step = namespace["step"]
-        self._run = namespace["run"]
 
-    def step(self, t: float) -> None:
-        """One communication step from ``t``: transfer, step every slave, call ``after_step``.
+    def run(self, execution: Execution, n: int) -> None:
+        """Do ``n`` communication steps of ``execution`` from its step ``execution.k``.
+
+        Each step k (from ``t_k = t0 + k*h``, ``t0`` the execution's start time)
+        transfers, steps every slave and calls ``after_step``; with ``"immediate"``
+        timing each slave takes its inputs just before it steps, with ``"delayed"``
+        every slave takes them before any steps. Each connection sets its input by a
+        setter of that input alone, with the source's current value. Then
+        ``execution.k`` becomes k + 1 and every observer's ``step_complete(k,
+        t_(k+1))`` is called (an observer that raises stops the run there).
 
         Raises
         ------
         FmuError
-            From the slave whose step failed.
+            From the slave whose step failed; ``execution.k`` is then that step's k.
         """
-        self._step(t)
-
-    def run(self, k0: int, k1: int, t0: float, done: Sequence[Callable[[int, float], None]],
-            at: list[int]) -> None:
-        """Steps ``k0 <= k < k1`` from ``t_k = t0 + k*h``: what :meth:`step` does for each,
-        then each of ``done(k, t_(k+1))``.
-
-        Raises
-        ------
-        FmuError
-            From the slave whose step failed; ``at[0]`` is then that step's k.
-        """
-        self._run(k0, k1, t0, done, at)
-
-
+        h = self.step_size
+        after = self._after
+        plan = self._plan
+        immediate = self.timing == "immediate"
+        complete = [o.step_complete for o in execution.observers]
+        t0 = execution.start_time
+        k0 = execution.k
+        steps_done = k0
+        try:
+            for k in range(k0, k0 + max(n, 0)):
+                t = t0 + k * h
+                for slave, do_step, transfers in plan:
+                    for source, index, set_input in transfers:
+                        set_input(source.values[index])
+                    if immediate:
+                        do_step(t, h)
+                        if after is not None:
+                            after(slave)
+                if not immediate:
+                    for slave, do_step, _ in plan:
+                        do_step(t, h)
+                        if after is not None:
+                            after(slave)
+                steps_done = k + 1
+                t = t0 + steps_done * h
+                for done in complete:
+                    done(k, t)
+        finally:
+            execution.k = steps_done

@@ -16,6 +16,7 @@ maneuver's measurement noise as a manipulator and a trace observer. Timing
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 from papwc.controllers import CONTROLLER_KINDS, Controller, make_controller
@@ -24,7 +25,7 @@ from papwc.errors import FmuError
 from papwc.master.algorithm import FixedStepAlgorithm
 from papwc.master.execution import Execution
 from papwc.master.manipulators import MeasurementNoise
-from papwc.master.observers import TraceObserver
+from papwc.master.observers import Observer, TraceObserver
 from papwc.master.slave import ControllerSlave, Slave
 from papwc.master.trace import Trace
 from papwc.model.maneuver import MANEUVER_DEFAULTS, TIMINGS
@@ -87,10 +88,15 @@ class ClosedLoop:
     motor_encoder : bool
         Connect ``plant.x_d_meas -> controller.x_d_meas`` too (a controller that reads the
         motor encoder).
+    observers : sequence of Observer
+        Further observers, told after the trace observer (e.g. a
+        :class:`~papwc.master.observers.StepGuard`, which may stop the run between
+        two steps by raising).
     """
 
     def __init__(self, plant: Slave, controller: Slave, maneuver: Maneuver,
-                 label: str = "", motor_encoder: bool = False) -> None:
+                 label: str = "", motor_encoder: bool = False,
+                 observers: Sequence[Observer] = ()) -> None:
         self.maneuver = maneuver
         self.plant = plant
         self.controller = controller
@@ -109,6 +115,8 @@ class ClosedLoop:
             execution.add_manipulator(self.noise)
         self.observer = TraceObserver(plant, controller, label, 1, maneuver.T, maneuver.x_ref)
         execution.add_observer(self.observer)
+        for observer in observers:
+            execution.add_observer(observer)
         self.execution = execution
 
     def iteration(self, number: int, first: bool | None = None) -> Trace:
@@ -150,19 +158,22 @@ class ClosedLoop:
 
 
 def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
-                    settings: ControllerSettings | None = None, label: str = "") -> RunResult:
+                    settings: ControllerSettings | None = None, label: str = "",
+                    observers: Sequence[Observer] = ()) -> RunResult:
     """Run all iterations of the maneuver; what the controller learns carries over.
 
     ``plant`` must already have its parameters as start values. The first
     iteration initializes both slaves, later ones restart them. A failure
     stops the run and is kept in ``result.error`` (``"iteration N: ..."``); the
-    traces recorded until then are kept.
+    traces recorded until then are kept. ``observers`` are added to the
+    execution (see :class:`ClosedLoop`); what they raise ends the run.
     """
     settings = settings if settings is not None else ControllerSettings()
     result = RunResult(label or settings.kind, settings)
     kind = CONTROLLER_KINDS.get(settings.kind)
     loop = ClosedLoop(plant, controller, maneuver, result.label,
-                      motor_encoder=kind is not None and kind.reads_x_d_meas)
+                      motor_encoder=kind is not None and kind.reads_x_d_meas,
+                      observers=observers)
     for number in range(1, maneuver.iterations + 1):
         trace = loop.iteration(number)
         if trace.error and not len(trace):
@@ -176,10 +187,10 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
 
 
 def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuver,
-                   label: str = "") -> RunResult:
+                   label: str = "", observers: Sequence[Observer] = ()) -> RunResult:
     """Run a Python controller of ``settings`` against ``plant`` (see :func:`run_closed_loop`)."""
     controller = ControllerSlave(make_controller(settings, maneuver.T))
-    return run_closed_loop(plant, controller, maneuver, settings, label)
+    return run_closed_loop(plant, controller, maneuver, settings, label, observers)
 
 
 def run_iteration(plant: Slave, controller: Controller | Slave, maneuver: Maneuver,

@@ -135,7 +135,10 @@ class Execution:
         return self.start_time + (self.k if k is None else k) * self.algorithm.step_size
 
     def step(self, n: int = 1) -> None:
-        """Do ``n`` communication steps.
+        """Do ``n`` communication steps; after each, every observer's ``step_complete``.
+
+        An observer may stop the run between two steps by raising (the step guard of
+        :mod:`papwc.master.observers` does); ``k`` then counts the steps done.
 
         Raises
         ------
@@ -143,20 +146,14 @@ class Execution:
             When a slave's step fails; observers are told (``step_failed``) first,
             and ``k`` stays at the failed step.
         """
-        if n <= 0:
-            return
-        complete = [o.step_complete for o in self.observers]
-        t0 = self.start_time
-        at = [self.k]
         try:
-            self.algorithm.run(self.k, self.k + n, t0, complete, at)
+            self.algorithm.run(self, n)
         except FmuError:
-            k = self.k = at[0]
-            t = t0 + k * self.algorithm.step_size
+            k = self.k
+            t = self.start_time + k * self.algorithm.step_size
             for o in self.observers:
                 o.step_failed(k, t)
             raise
-        self.k += n
 
     def finish(self) -> None:
         """Tell the observers the run has ended."""

@@ -189,7 +189,6 @@ class FmuSlave:
             self._entered = False
             self._resets = not (self.md.generationTool or "").startswith("PythonFMU")
             self._refresh: Callable[[], None] = lambda: None
-            self._real_read: tuple[Any, ...] | None = None
             #: What a Real input was last set to, by name: [value, sign of value] or [NaN]
             #: (not known); a setter of that input alone sends a value only if it differs.
             self._held: dict[str, list[float]] = {}
@@ -358,10 +357,8 @@ class FmuSlave:
             buf = (_C_TYPES[kind] * n)()
             reads.append((self._fn["Get" + kind], vr, c_size_t(n), buf, positions, kind))
         comp, check = self._c, self._check
-        self._real_read = None
         if len(reads) == 1 and reads[0][5] == "Real":
             get, vr, n, buf, _, _ = reads[0]
-            self._real_read = (get, vr, n, buf)  # what do_step reads itself
 
             def refresh() -> None:
                 status = get(comp, vr, n, buf)
@@ -524,15 +521,7 @@ class FmuSlave:
         status = self._do_step(self._c, t_c, step_size, 1)
         if status > 1:
             self._check("fmi2DoStep", status)
-        read = self._real_read
-        if read is None:
-            self._refresh()
-            return
-        get, vr, n, buf = read  # _refresh, inline: only Reals are watched
-        status = get(self._c, vr, n, buf)
-        if status > 1:
-            self._check("fmi2GetReal", status)
-        self.values = buf[:]
+        self._refresh()
 
     def _free_snapshot(self) -> None:
         if self._snapshot is not None and self._fmu is not None:

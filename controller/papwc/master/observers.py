@@ -3,23 +3,27 @@
 An observer implements :class:`Observer`: the execution calls ``setup`` once
 (the observer asks to watch variables there), ``initialized`` when the slaves
 are (re)initialized, ``step_complete`` after every step, ``step_failed`` when a
-step fails and ``finished`` at the end of a run.
+step fails and ``finished`` at the end of a run. An observer may stop a run
+between two steps by raising from ``step_complete`` (:class:`StepGuard` does, after
+a Ctrl-C or past the run's time limit); it never changes a slave.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
 from papwc.controllers import OUTPUT_NAMES
+from papwc.interrupts import _CLOCK_EVERY, _INTERRUPT, RunTimeout, interruption
 from papwc.master.slave import Slave
-from papwc.master.trace import Trace
+from papwc.master.trace import PLANT_COLUMNS, REQUIRED_PLANT_COLUMNS, Trace
 
 if TYPE_CHECKING:
     from papwc.master.execution import Execution
 
-__all__ = ["Observer", "TraceObserver", "VariableObserver"]
+__all__ = ["Observer", "StepGuard", "TraceObserver", "VariableObserver"]
 
 
 class Observer(Protocol):
@@ -46,10 +50,6 @@ class Observer(Protocol):
         ...
 
 
-#: Trace columns read from the plant at each communication point (state at t_k).
-_STATE = ("x", "v", "x_meas")
-#: Trace columns of the motor side, read where the plant has them (NaN where not).
-_MOTOR = ("x_d", "x_d_meas")
 #: Trace columns read from the controller after its sample at t_k: its outputs but u.
 _CONTROLLER = OUTPUT_NAMES
 
@@ -57,8 +57,10 @@ _CONTROLLER = OUTPUT_NAMES
 class TraceObserver:
     """Records one iteration of a closed loop as a :class:`~papwc.master.trace.Trace`.
 
-    Row k holds the plant's ``x``, ``v``, ``x_meas`` at t_k (after the
-    manipulators: what the controller saw), the force ``u`` the plant got over
+    Row k holds the plant's outputs of :data:`~papwc.master.trace.PLANT_COLUMNS`
+    (``x``, ``v``, ``x_meas``, ...) at t_k (after the manipulators: what the
+    controller saw; NaN for an output the plant does not have, but ``x``, ``v`` and
+    ``x_meas``, which it must have), the force ``u`` the plant got over
     [t_k, t_k+1], ``e = x_ref - x`` and the controller's ``mode``, ``pulses``
     and estimates and outcome after its sample at t_k. The last row is the
     state at the end, with ``u`` NaN.
@@ -72,7 +74,7 @@ class TraceObserver:
     Parameters
     ----------
     plant, controller : Slave
-        The plant (variables x, v, x_meas) and the controller (the model layer's
+        The plant (outputs x, v, x_meas at least) and the controller (the model layer's
         CONTROLLER_OUTPUTS), connected
         ``controller.u -> plant.u``.
     label : str
@@ -96,11 +98,11 @@ class TraceObserver:
         self._delayed = False
 
     def setup(self, execution: Execution) -> None:
-        """Watch the plant's state and the controller's outputs; learn the timing."""
-        self._state = self.plant.watch(_STATE)
+        """Watch the plant's outputs and the controller's outputs; learn the timing."""
         known = self.plant.variables()
-        self._motor_names = tuple(name for name in _MOTOR if name in known)
-        self._motor = self.plant.watch(self._motor_names)
+        self._plant_names = tuple(name for name in PLANT_COLUMNS
+                                  if name in known or name in REQUIRED_PLANT_COLUMNS)
+        self._plant_index = self.plant.watch(self._plant_names)
         (self._u,) = self.controller.watch(("u",))
         self._ctrl = self.controller.watch(_CONTROLLER)
         self._delayed = execution.algorithm.timing == "delayed"
@@ -115,17 +117,9 @@ class TraceObserver:
     def initialized(self, t: float) -> None:
         """Start the rows with the plant's initial values at ``t`` (s)."""
         self._t0 = t
-        self._plant_rows = plant_rows = [self.plant.values]
-        self._controller_rows = controller_rows = []
+        self._plant_rows = [self.plant.values]
+        self._controller_rows = []
         self._controller_start = self.controller.values
-        plant, controller = self.plant, self.controller
-        keep_plant, keep_controller = plant_rows.append, controller_rows.append
-
-        def step_complete(k: int, t: float) -> None:
-            keep_controller(controller.values)
-            keep_plant(plant.values)
-
-        self.step_complete = step_complete  # the method below, bound to these rows
 
     def step_complete(self, k: int, t: float) -> None:
         """Keep the controller's values of sample k and the plant's at t_(k+1)."""
@@ -154,11 +148,9 @@ class TraceObserver:
         # the length of the slave's watch list).
         plant = list(zip(*plant_rows[:n], strict=True)) if n else None
         ctrl = list(zip(*ctrl_rows, strict=True)) if n else None
-        for name, i in zip(_STATE, self._state, strict=True):
-            cols[name] = list(plant[i]) if n else []
-        for name in _MOTOR:
+        for name in PLANT_COLUMNS:
             cols[name] = [math.nan] * n
-        for name, i in zip(self._motor_names, self._motor, strict=True):
+        for name, i in zip(self._plant_names, self._plant_index, strict=True):
             cols[name] = list(plant[i]) if n else []
         cols["e"] = [x_ref - x for x in cols["x"]]
         iu = self._u
@@ -170,6 +162,62 @@ class TraceObserver:
         cols["u"] = u
         for name, i in zip(_CONTROLLER, self._ctrl, strict=True):
             cols[name] = list(ctrl[i]) if n else []
+
+
+class StepGuard:
+    """Stops a run between two steps: after a deferred Ctrl-C or SIGTERM, or past a deadline.
+
+    Raises from :meth:`step_complete` KeyboardInterrupt (or
+    :class:`~papwc.interrupts.Terminated`) once :func:`papwc.interrupts.deferred_interrupt`
+    has caught a Ctrl-C or SIGTERM (looked at after every step), and
+    :class:`~papwc.interrupts.RunTimeout` once ``time.monotonic()`` is past ``deadline``
+    (looked at every ``_CLOCK_EVERY`` steps; the clock costs more than the flag).
+
+    Parameters
+    ----------
+    deadline : float, optional
+        ``time.monotonic()`` value after which the run stops (None: no time limit).
+    limit : float, optional
+        The time limit the deadline stands for, s (for the message).
+    """
+
+    def __init__(self, deadline: float | None = None, limit: float | None = None) -> None:
+        self.deadline = deadline
+        self.limit = limit
+        self._steps = 0
+
+    def setup(self, execution: Execution) -> None:
+        """Nothing to watch."""
+
+    def initialized(self, t: float) -> None:
+        """Nothing to record (the steps are counted over every iteration of a run)."""
+
+    def step_complete(self, k: int, t: float) -> None:
+        """Raise if the run must stop now, at ``t`` (s); see :meth:`check`."""
+        self.check(t)
+
+    def check(self, t: float) -> None:
+        """Raise KeyboardInterrupt after a deferred Ctrl-C, RunTimeout past the deadline.
+
+        Parameters
+        ----------
+        t : float
+            The communication point reached, s (named in the message).
+        """
+        if _INTERRUPT["requested"]:
+            raise interruption()
+        if self.deadline is not None:
+            self._steps += 1
+            if self._steps % _CLOCK_EVERY == 0 and time.monotonic() > self.deadline:
+                limit = "its time limit" if self.limit is None else f"{self.limit:g} s"
+                raise RunTimeout(f"timed out: the run took longer than {limit} "
+                                 f"(stopped at t = {t!r} s)")
+
+    def step_failed(self, k: int, t: float) -> None:
+        """Nothing to do: the failure ends the run."""
+
+    def finished(self, k: int, t: float) -> None:
+        """Nothing to do."""
 
 
 class VariableObserver:

@@ -26,13 +26,14 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Mapping, Sequence
 from functools import partial
+from operator import attrgetter
 from types import SimpleNamespace
 from typing import Any, Protocol
 
 from papwc.controllers import Controller
 from papwc.errors import FmuError
 from papwc.model.controller_settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUTS
-from papwc.model.dynamics import Plant
+from papwc.model.dynamics import OUTPUTS, Plant, output_reader
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES, plant_problems
 
 __all__ = ["ControllerSlave", "PhysicsSlave", "SignalSlave", "Slave"]
@@ -79,23 +80,29 @@ class Slave(Protocol):
         ...
 
 
-def _list_reader(paths: Sequence[str]) -> Callable[[Any], list[Any]]:
-    """``f(obj)`` returning ``[obj.<path>, ...]`` as a new list.
+def _attribute_reader(paths: Sequence[str]) -> Callable[[Any], Sequence[Any]]:
+    """``f(obj)`` returning ``(obj.<path>, ...)`` (dotted paths allowed).
 
-    Compiled from the (identifier) paths, as :mod:`dataclasses` compiles its
-    methods: one list display is the cheapest way to read several attributes.
+    Two or more paths are read by one :func:`operator.attrgetter`, a single call
+    without a Python frame: the cheapest way to read several attributes.
     """
     for path in paths:
         if not all(part.isidentifier() for part in path.split(".")):
             raise ValueError(f"not an attribute path: {path!r}")
-    return eval("lambda o: [" + ", ".join(f"o.{p}" for p in paths) + "]")  # noqa: S307
+    if len(paths) >= 2:
+        return attrgetter(*paths)
+    if not paths:
+        return lambda obj: ()
+    get_one = attrgetter(paths[0])
+    return lambda obj: (get_one(obj),)
 
 
 class _WatchedAttributes:
     """Watching and setting variables that are attributes of a Python object.
 
-    A subclass maps each variable to an attribute path (:meth:`_path`); the
-    watched values are read by one compiled list display.
+    A subclass maps each variable to an attribute path (:meth:`_path`), or gives
+    its own reader (:meth:`_reader`); each refresh reads the watched values by one
+    call of it into a new list.
     """
 
     name: str
@@ -104,7 +111,7 @@ class _WatchedAttributes:
     def _init_watch(self) -> None:
         self.values = []
         self._watched: list[str] = []
-        self._read: Callable[[Any], list[Any]] = lambda obj: []
+        self._read: Callable[[Any], Sequence[Any]] = lambda obj: ()
 
     def watch(self, names: Sequence[str]) -> list[int]:
         """Read ``names`` into :attr:`values` after each step; return their indexes."""
@@ -117,11 +124,11 @@ class _WatchedAttributes:
             if name not in self._watched:
                 self._watched.append(name)
             indexes.append(self._watched.index(name))
-        self._read = _list_reader([self._path(n) for n in self._watched])
+        self._read = self._reader(self._watched)
         return indexes
 
     def _refresh(self) -> None:
-        self.values = self._read(self)
+        self.values = list(self._read(self))
 
     def _attribute_setter(self, names: Sequence[str]) -> Callable[..., None]:
         """A setter of attribute inputs that also shows the values if they are watched."""
@@ -146,6 +153,11 @@ class _WatchedAttributes:
 
         return set_all
 
+    def _reader(self, names: Sequence[str]) -> Callable[[Any], Sequence[Any]]:
+        """``read(self)``: the values of ``names`` in order (by default the attributes
+        :meth:`_path` names)."""
+        return _attribute_reader([self._path(name) for name in names])
+
     def _path(self, name: str) -> str:
         raise NotImplementedError
 
@@ -162,7 +174,8 @@ class PhysicsSlave(_WatchedAttributes):
     """The friction plant computed in this process by :class:`papwc.model.dynamics.Plant`.
 
     Same variables, units and parameter checks as FrictionPlant.fmu (both read
-    :data:`papwc.model.plant.PLANT_VARIABLES`) and the same stepping object, so
+    :data:`papwc.model.plant.PLANT_VARIABLES`) and the same stepping object, whose
+    outputs it reads as the FMU does (:data:`papwc.model.dynamics.OUTPUTS`), so
     the same trajectory to the last bit; fast, for analysis and tests.
     """
 
@@ -170,11 +183,7 @@ class PhysicsSlave(_WatchedAttributes):
         self.name = name
         self.params: dict[str, Any] = dict(PLANT_DEFAULTS)
         self.plant = Plant(self.params)
-        self.x_meas = 0.0
-        self.x_d = 0.0
-        self.x_d_meas = 0.0
         self.u = 0.0
-        self.stuck = True
         self.p = SimpleNamespace(**self.params)
         self._init_watch()
 
@@ -182,35 +191,29 @@ class PhysicsSlave(_WatchedAttributes):
         """Causality of every variable."""
         return {v.name: v.causality for v in PLANT_VARIABLES}
 
-    def _path(self, name: str) -> str:
-        if name in ("x", "v"):
-            return f"plant.{name}"
-        return name if name in ("u", "x_meas", "stuck", "x_d", "x_d_meas") else f"p.{name}"
+    def _reader(self, names: Sequence[str]) -> Callable[[Any], Sequence[Any]]:
+        """Outputs from the plant (:func:`papwc.model.dynamics.output_reader`), the input
+        ``u`` and the parameters from this slave."""
+        if all(name in OUTPUTS for name in names):
+            read_plant = output_reader(names)
+            return lambda slave: read_plant(slave.plant)
+        getters = []
+        for name in names:
+            if name in OUTPUTS:
+                getters.append(lambda slave, value=OUTPUTS[name]: value(slave.plant))
+            else:
+                getters.append(attrgetter(name if name == "u" else f"p.{name}"))
+        return lambda slave: [get(slave) for get in getters]
 
     @property
     def x(self) -> float:
         """Position, m."""
         return self.plant.x
 
-    @x.setter
-    def x(self, value: float) -> None:
-        self.plant.x = value
-
     @property
     def v(self) -> float:
         """Velocity, m/s (exactly 0.0 while the mass is stuck)."""
         return self.plant.v
-
-    @v.setter
-    def v(self, value: float) -> None:
-        self.plant.v = value
-
-    def _update_outputs(self) -> None:
-        plant = self.plant
-        self.x_meas = plant.x_meas()
-        self.stuck = plant.v == 0.0
-        self.x_d = plant.x_d_now()
-        self.x_d_meas = plant.x_d_meas()
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
         """Parameters and input start values, applied at every (re)initialization."""
@@ -242,7 +245,6 @@ class PhysicsSlave(_WatchedAttributes):
                            + "; ".join(f"parameter {m}" for _, m in problems))
         self.p = SimpleNamespace(**self.params)
         self.plant = Plant(self.params)
-        self._update_outputs()
         self._refresh()
 
     restart = initialize
@@ -255,7 +257,6 @@ class PhysicsSlave(_WatchedAttributes):
         reason = self.plant.step(u, h)
         if reason is not None:
             raise FmuError(f"doStep at t = {t!r} s discarded: {reason}")
-        self._update_outputs()
         self._refresh()
 
     def close(self) -> None:
@@ -328,7 +329,6 @@ class ControllerSlave(_WatchedAttributes):
         for key, value in self._start.items():
             setattr(self, key, value)
         self.u = 0.0
-        self._refresh_outputs()
         self._refresh()
 
     def restart(self, start_time: float = 0.0) -> None:
@@ -345,16 +345,18 @@ class ControllerSlave(_WatchedAttributes):
         self.u = controller.update(t, self.x_meas, self.x_ref)
         if controller.idle_samples > idle:
             return  # a sample only counted: every output is the one of the last sample
-        self._refresh_outputs()
-        self.values = self._read(self)  # _refresh, inline
+        self._refresh()
 
-    def _refresh_outputs(self) -> None:
+    def _refresh(self) -> None:
+        """Take the controller's outputs (its estimates when they changed), then read the
+        watched values."""
         controller = self.controller
         values = self.out.__dict__
         if controller.revision != self._revision:
             values.update(controller.estimates())
             self._revision = controller.revision
         values.update(controller.outputs())
+        self.values = list(self._read(self))
 
     def close(self) -> None:
         """Nothing to release."""

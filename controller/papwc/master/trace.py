@@ -1,6 +1,8 @@
 """What one iteration of a closed loop recorded (:class:`Trace`) and its metrics.
 
-A trace holds named columns, one value per sample t_k = k*T (SI units):
+A trace holds named columns, one value per sample t_k = k*T (SI units); the
+plant's are its Real outputs (:data:`PLANT_COLUMNS`, from the model layer's
+``PLANT_OUTPUTS``: a new Real output of the plant is a new column):
 
 ======== ======================================================================
 ``k``    sample number
@@ -30,12 +32,18 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from papwc.controllers import OUTPUT_NAMES
+from papwc.model.plant import PLANT_OUTPUTS
 from papwc.output_files import atomic_open, format_value
 
-__all__ = ["TRACE_COLUMNS", "Trace"]
+__all__ = ["PLANT_COLUMNS", "REQUIRED_PLANT_COLUMNS", "TRACE_COLUMNS", "Trace"]
 
+#: Columns read from the plant at t_k: its Real outputs, in the model layer's order.
+PLANT_COLUMNS = tuple(var.name for var in PLANT_OUTPUTS if var.type == "Real")
+#: The plant columns every plant must have (the others are NaN for a plant without them,
+#: e.g. another tool's FMU).
+REQUIRED_PLANT_COLUMNS = ("x", "v", "x_meas")
 #: Columns of a trace, in the order of its CSV file.
-TRACE_COLUMNS = ("k", "t", "x", "v", "x_meas", "x_d", "x_d_meas", "u", "e") + OUTPUT_NAMES
+TRACE_COLUMNS = ("k", "t") + PLANT_COLUMNS + ("u", "e") + OUTPUT_NAMES
 
 
 @dataclass

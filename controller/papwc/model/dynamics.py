@@ -4,7 +4,8 @@ Standard library only (bundled into FrictionPlant.fmu). :class:`Plant` holds
 the plant's parameters and its full state, and advances it over a
 communication step with the force held (:meth:`Plant.step`). FrictionPlant.fmu
 and the master's in-process plant (:class:`papwc.master.slave.PhysicsSlave`)
-both step a :class:`Plant`, so they give the same trajectory to the last bit.
+both step a :class:`Plant`, so they give the same trajectory to the last bit, and
+both read its outputs by the model layer's names from :data:`OUTPUTS`.
 
 How a step is computed depends on the deviations present
 (:mod:`papwc.model.effects`):
@@ -36,7 +37,8 @@ the breakaway instant, where it reaches ``r(x)*f_s``, its logarithm.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
+from operator import attrgetter
 from typing import Any
 
 from .effects.encoder import MOTOR_STREAM, EncoderNoise
@@ -46,7 +48,7 @@ from .effects.lugre import LuGre
 from .effects.ripple import Ripple
 from .effects.stiction import RandomStiction
 from .effects.stribeck import Stribeck
-from .plant import PLANT_DEFAULTS
+from .plant import PLANT_DEFAULTS, PLANT_OUTPUTS
 from .rodas import dense, dense_value, rodas4_step
 from .stickslip import quantize, stop_time
 from .stickslip import step as exact_step
@@ -54,9 +56,11 @@ from .stickslip import step as exact_step
 __all__ = [
     "MAX_EVENTS",
     "MAX_STEPS",
+    "OUTPUTS",
     "STATE_FIELDS",
     "TOLERANCES",
     "Plant",
+    "output_reader",
 ]
 
 #: Tolerances of the integrator's local error per state component, (absolute, relative):
@@ -150,11 +154,6 @@ class Plant:
         self.work = (0, 0)
         self.is_eq1 = self.exact and self.stiction is None and not self.noisy
         self._layout()
-        if self.is_eq1:
-            self.step: Callable[[float, float], str | None] = self._step_exact
-        else:
-            self.step = self._step_checked
-            self._advance = self._advance_stiction if self.exact else self._integrate
         self.reset()
 
     # -- state ---------------------------------------------------------------------------------
@@ -211,6 +210,10 @@ class Plant:
             return quantize(self.x, self.x_resolution)
         return quantize(self.x + self.noise, self.x_resolution)
 
+    def is_stuck(self) -> bool:
+        """Whether the table is at rest: ``v`` exactly 0 (the output ``stuck``)."""
+        return self.v == 0.0
+
     def x_d_now(self) -> float:
         """Motor (drive) position, m: ``x_d`` of the flexible drive, ``x`` on a rigid one."""
         return self.x if self.flexible is None else self.x_d
@@ -227,19 +230,24 @@ class Plant:
             return quantize(x_d, self.x_d_resolution)
         return quantize(x_d + self.encoder_d.draw(self.noise_draws - 1), self.x_d_resolution)
 
+    def outputs(self) -> dict[str, Any]:
+        """Every output now, by the model layer's names (:data:`OUTPUTS`, in that order)."""
+        return {name: value(self) for name, value in OUTPUTS.items()}
+
     # -- stepping ------------------------------------------------------------------------------
-    def step(self, u: float, h: float) -> str | None:  # replaced per instance in __init__
+    def step(self, u: float, h: float) -> str | None:
         """Advance over ``h`` (s, > 0) with the force ``u`` (N, finite) held.
+
+        Without deviations (:attr:`is_eq1`) this is :func:`papwc.model.stickslip.step`,
+        called exactly as before the deviations existed.
 
         Returns
         -------
         str or None
             None, or why the step is refused (the state is then left as it was).
         """
-        raise NotImplementedError
-
-    def _step_exact(self, u: float, h: float) -> str | None:
-        """Eq. (1) exactly (:func:`papwc.model.stickslip.step`); no deviation present."""
+        if not self.is_eq1:
+            return self._step_checked(u, h)
         x, v = exact_step(self.x, self.v, u, h, self.m, self.f_c, self.f_s, self.c)
         if not (_isfinite(x) and _isfinite(v)):
             return "the result would not be finite"
@@ -251,7 +259,10 @@ class Plant:
         """Advance with deviations; on any failure the state is left as it was."""
         saved = self.state()
         try:
-            reason = self._advance(u, h)
+            if self.exact:
+                reason = self._advance_stiction(u, h)
+            else:
+                reason = self._integrate(u, h)
         except (ArithmeticError, ValueError) as exc:
             reason = f"the integration failed: {type(exc).__name__}: {exc}"
         if reason is None and not all(_isfinite(getattr(self, n)) for n in STATE_FIELDS):
@@ -635,3 +646,40 @@ class Plant:
                 if abs(drive) <= self._breakaway(y[0]):
                     return 0.0
         return 1.0 if drive > 0.0 else -1.0
+
+
+#: The plant's outputs, by the names and in the order of :data:`papwc.model.plant.PLANT_OUTPUTS`:
+#: the function of a :class:`Plant` that gives each now. Every reader of the outputs takes
+#: them from here: the master's in-process plant (:class:`papwc.master.slave.PhysicsSlave`),
+#: FrictionPlant.fmu built with pythonfmu, and so the observers and the traces. A new output
+#: is its :class:`~papwc.model.variables.Variable` in ``PLANT_OUTPUTS`` and its function here
+#: (and, for the native FMU, its line in ``fp_outputs`` of fmu_src/FrictionPlant/plant.c).
+OUTPUTS: dict[str, Callable[[Plant], Any]] = {
+    "x": attrgetter("x"),
+    "v": attrgetter("v"),
+    "x_meas": Plant.x_meas,
+    "stuck": Plant.is_stuck,
+    "x_d": Plant.x_d_now,
+    "x_d_meas": Plant.x_d_meas,
+}
+
+if tuple(OUTPUTS) != tuple(var.name for var in PLANT_OUTPUTS):
+    raise ImportError("papwc.model.dynamics.OUTPUTS must compute the outputs of "
+                      "papwc.model.plant.PLANT_OUTPUTS, in their order: "
+                      + ", ".join(var.name for var in PLANT_OUTPUTS))
+
+
+def output_reader(names: Sequence[str]) -> Callable[[Plant], list[Any]]:
+    """``read(plant)``: the outputs ``names`` of a :class:`Plant` now, as a new list.
+
+    Raises
+    ------
+    KeyError
+        If a name is not an output (:data:`OUTPUTS`).
+    """
+    values = [OUTPUTS[name] for name in names]
+
+    def read(plant: Plant) -> list[Any]:
+        return [value(plant) for value in values]
+
+    return read

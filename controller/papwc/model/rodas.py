@@ -46,28 +46,58 @@ _D31, _D32, _D33, _D34, _D35 = (-0.6762803392801253, 6.087714651680015, 16.43084
                                 24.76722511418386, -6.594389125716872)
 
 
-def _matvec_source(n: int) -> str:
-    names = ", ".join(f"b{j}" for j in range(n))
-    terms = " + ".join(f"r[{j}] * b{j}" for j in range(n))
-    return f"def matvec(m, b):\n    {names}, = b\n    return [{terms} for r in m]\n"
+# The products of the iteration matrix's inverse and a vector, written out for the plant's
+# 2 to 6 states: each row's terms summed left to right, as the loop of _matvec_any does;
+# written out, a RODAS4 step of the plant costs less (see matvec).
+def _matvec2(m: list[list[float]], b: list[float]) -> list[float]:
+    b0, b1 = b
+    return [r[0] * b0 + r[1] * b1 for r in m]
 
 
-def _compile_matvec(n: int) -> Callable[[list[list[float]], list[float]], list[float]]:
-    """``matvec(m, b)``: the product of an n x n matrix (list of rows) and a vector, unrolled."""
-    namespace: dict = {}
-    exec(_matvec_source(n), namespace)  # noqa: S102 - generated from the integer n only
-    return namespace["matvec"]
+def _matvec3(m: list[list[float]], b: list[float]) -> list[float]:
+    b0, b1, b2 = b
+    return [r[0] * b0 + r[1] * b1 + r[2] * b2 for r in m]
 
 
-_MATVEC: dict[int, Callable[[list[list[float]], list[float]], list[float]]] = {}
+def _matvec4(m: list[list[float]], b: list[float]) -> list[float]:
+    b0, b1, b2, b3 = b
+    return [r[0] * b0 + r[1] * b1 + r[2] * b2 + r[3] * b3 for r in m]
+
+
+def _matvec5(m: list[list[float]], b: list[float]) -> list[float]:
+    b0, b1, b2, b3, b4 = b
+    return [r[0] * b0 + r[1] * b1 + r[2] * b2 + r[3] * b3 + r[4] * b4 for r in m]
+
+
+def _matvec6(m: list[list[float]], b: list[float]) -> list[float]:
+    b0, b1, b2, b3, b4, b5 = b
+    return [r[0] * b0 + r[1] * b1 + r[2] * b2 + r[3] * b3 + r[4] * b4 + r[5] * b5 for r in m]
+
+
+def _matvec_any(m: list[list[float]], b: list[float]) -> list[float]:
+    out = []
+    for row in m:
+        total = row[0] * b[0]
+        for j in range(1, len(b)):
+            total = total + row[j] * b[j]
+        out.append(total)
+    return out
+
+
+_MATVEC: dict[int, Callable[[list[list[float]], list[float]], list[float]]] = {
+    2: _matvec2, 3: _matvec3, 4: _matvec4, 5: _matvec5, 6: _matvec6,
+}
 
 
 def matvec(n: int) -> Callable[[list[list[float]], list[float]], list[float]]:
-    """The unrolled matrix-vector product for dimension ``n`` (compiled once)."""
-    fn = _MATVEC.get(n)
-    if fn is None:
-        fn = _MATVEC[n] = _compile_matvec(n)
-    return fn
+    """``matvec(m, b)``: the product of an n x n matrix (list of rows) and a vector.
+
+    Every row's terms ``m[i][j]*b[j]`` are summed left to right. For the plant's
+    2 to 6 states the product is written out term by term, which the measurement
+    in ``papwc bench`` (section "RODAS4 step") shows to be worth it; other sizes
+    take a loop.
+    """
+    return _MATVEC.get(n, _matvec_any)
 
 
 def inverse(a: list[list[float]]) -> list[list[float]]:
