@@ -20,6 +20,7 @@ __all__ = [
     "CONTROLLER_INPUTS",
     "CONTROLLER_OUTPUTS",
     "CONTROLLER_SETTINGS",
+    "F_MODE_MAX_T",
     "FMU_DEFAULT_SENTINEL",
     "KIND_CODE",
     "KIND_CODES",
@@ -39,6 +40,10 @@ __all__ = [
 MODE_PERIODS = 2.5
 #: Longest dwell of rest detection, sample intervals (``rest_samples`` and that of ``f_mode``).
 DWELL_MAX = 1_000_000
+#: Highest mode a controller sampling at T takes, in units of 1/T: above it (omega*T > pi/2)
+#: the mode is too close to the Nyquist frequency 0.5/T for one-sample pulses to be timed
+#: against its ringing or for a loop at T to damp it.
+F_MODE_MAX_T = 0.25
 
 #: Settings of a ``[[controller]]`` table, in the order of the FMU's value references.
 CONTROLLER_SETTINGS: tuple[Variable, ...] = (
@@ -128,7 +133,8 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "stay rest_band and rest_samples", "", True, type="Boolean"),
     Variable("f_mode", "Frequency of the machine's slowest mode (0 = rigid or unknown): rest "
              f"lasts at least {MODE_PERIODS:g} periods of it (the ringing a pulse leaves is "
-             "waited out before the pulse is judged) and the trust region stays at most 0.5",
+             "waited out before the pulse is judged) and the trust region stays at most 0.5; "
+             f"at most {F_MODE_MAX_T:g}/T (a mode closer to the Nyquist frequency is refused)",
              "Hz",
              0.0, min=0.0, max=1e6, nominal=10.0),
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
@@ -188,6 +194,17 @@ def _mode_dwell_bounded(values: Mapping[str, Any]) -> tuple[str, str] | None:
                       f">= {MODE_PERIODS / (DWELL_MAX * T):g} Hz")
 
 
+def _mode_below_quarter_rate(values: Mapping[str, Any]) -> tuple[str, str] | None:
+    f_mode, T = values["f_mode"], values["T"]
+    if f_mode * T <= F_MODE_MAX_T * (1.0 + 1e-12):
+        return None
+    return "f_mode", (f"f_mode = {f_mode!r} Hz: above {F_MODE_MAX_T:g}/T = "
+                      f"{F_MODE_MAX_T / T:g} Hz (T = {T!r} s), too close to the sampling's "
+                      f"Nyquist frequency {0.5 / T:g} Hz for a controller sampling at T; "
+                      f"must be 0 (rigid or unknown) or <= {F_MODE_MAX_T / T:g} Hz "
+                      "(or sample faster)")
+
+
 #: Rules between settings (and the sample period ``T``, where it is given: the
 #: controller FMU's parameter, a scenario's ``[maneuver]`` field).
 CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
@@ -196,6 +213,7 @@ CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
     Constraint(("e_band", "tolerance"), _e_band_above_tolerance),
     Constraint(("t_p_max", "T"), _t_p_max_at_least_T),
     Constraint(("f_mode", "T"), _mode_dwell_bounded),
+    Constraint(("f_mode", "T"), _mode_below_quarter_rate),
 )
 
 #: The sample period as a parameter of PulseController.fmu.
