@@ -336,11 +336,18 @@ class PulseSequencer:
                 return 0.0
         elif abs(e) <= tol:
             return self.settle()
-        if abs(e) > self.e_band or (abs(e) > self.hand_over_band() and self.mode != _M_COARSE):
+        if abs(e) > self.e_band or (abs(e) > self.hand_over_band()
+                                    and not (self.mode == _M_COARSE
+                                             and self.stall_n > STALL_SAMPLES)):
+            if self.mode != _M_COARSE:
+                self.stall_x = x_hat
+                self.stall_n = 0
+            elif self._stalled(self.x_prev, e):
+                self.released = True
+                rest.ring_n = 0
+                return 0.0
             self.mode = Mode.COARSE
             self.released = False
-            self.stall_x = x_hat
-            self.stall_n = 0
             self.outcome = Outcome.ACTIVE
             return self.coarse(x_ref - self.x_prev)
         if self.guarded and law.budget_spent():
