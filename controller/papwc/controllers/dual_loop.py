@@ -53,7 +53,7 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from ..model.controller_settings import DUAL_LOOP_F_MODE_MAX_T
+from ..model.controller_settings import F_MODE_MAX_T
 from .exact import ExactController
 from .interface import Mode, Outcome, Reason
 from .sequencer import X_LIMIT
@@ -61,8 +61,6 @@ from .settings import ControllerSettings
 
 __all__ = ["DualLoopController", "MotorLoop", "F_MODE_MAX_T", "LOOP_POLE", "RELAX_SAMPLES"]
 
-#: Highest mode frequency times T the motor loop is made for (0.25: omega*T = pi/2).
-F_MODE_MAX_T = DUAL_LOOP_F_MODE_MAX_T
 #: Poles of the motor loop (z-plane, both): 0 would be deadbeat; a little above it keeps
 #: the loop damped with the drive model a few percent off.
 LOOP_POLE = 0.2

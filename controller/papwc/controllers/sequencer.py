@@ -37,11 +37,14 @@ With ``safeguards`` (the default) the sequencer stops a maneuver after
 leave the mass farther from the target than the maneuver started, even if it
 moves 1/trust times the prediction (:class:`~.trust.TrustRegion`).
 
-On a machine seen ringing (a mode the settings did not name, see :mod:`.rest`) a
-pulse's move depends on the ringing it meets more than on its height, so the pulses
-shrink: one sample each, and once a sample has moved more than half the runaway
-bound ``1.5*|e|`` (:data:`RING_MARGIN`), one sample at the law's lowest height ``f_low``
-(the smallest pulse it can make).
+On a machine with a mode, told (``f_mode`` > 0) or seen ringing (a mode the settings did
+not name, see :mod:`.rest`), a pulse's move depends on the ringing it meets more than on
+its height, so the pulses shrink: one sample each, and once a sample has moved more than
+half the runaway bound ``1.5*|e|`` (:data:`RING_MARGIN`), one sample at the law's lowest
+height ``f_low`` (the smallest pulse it can make). Its coarse feedback hands over within
+:data:`E_BAND_FLEXIBLE` (or ``e_band`` if smaller) instead of ``e_band``, and also where
+friction holds the mass against it (stalled, inside ``e_band``): the pulses take over
+from there.
 
 Standard library only (bundled into the controller FMU).
 """
@@ -70,8 +73,16 @@ Z_DECIDE = 3.0
 Z_ACT = 2.5
 #: The runaway bound's factor: a pulse should move at most RUNAWAY_FACTOR*|e| (plus a count).
 RUNAWAY_FACTOR = 1.5
-#: On a machine seen ringing, a sample may move this many times the most one has moved.
+#: On a machine with a mode, a sample may move this many times the most one has moved.
 RING_MARGIN = 2.0
+#: Largest hand-over band on a machine with a mode (told or seen ringing), m: the coarse
+#: feedback brings a long move this near before the pulses take over.
+E_BAND_FLEXIBLE = 1.5e-3
+#: On a machine with a mode, the coarse feedback has stalled (friction holds the mass
+#: against it) once the reading has stayed within STALL_BAND (m) for STALL_SAMPLES samples;
+#: inside ``e_band`` the force is then released and the pulses take over.
+STALL_BAND = 5e-6
+STALL_SAMPLES = 20
 #: The error is never asked to be known better than this fraction of it before a pulse
 #: (a first move need not land closer than the next can correct).
 PRECISION_MIN = 0.01
@@ -138,9 +149,10 @@ class PulseSequencer:
     #: Names of the state (:meth:`state`), in order.
     FIELDS = ("mode", "pulses", "first", "x_prev", "v_hat", "pulse_left", "f_pulse",
               "n_pulse", "x_start", "waited", "last_n", "last_f", "last_d", "outcome",
-              "outcome_reason", "stopped", "e0", "released", "pred", "refusal")
+              "outcome_reason", "stopped", "e0", "released", "pred", "refusal", "stall_x",
+              "stall_n")
     _INTS = frozenset(("mode", "pulses", "pulse_left", "n_pulse", "waited", "last_n",
-                       "outcome", "outcome_reason", "refusal"))
+                       "outcome", "outcome_reason", "refusal", "stall_n"))
     _BOOLS = frozenset(("first", "stopped", "released"))
 
     def __init__(self, law: Law, rest: RestDetector,
@@ -183,6 +195,8 @@ class PulseSequencer:
         self.stopped = False
         self.e0 = math.nan
         self.released = False
+        self.stall_x = 0.0
+        self.stall_n = 0
         self.pred = 0.0
         self.rest.reset()
 
@@ -266,7 +280,8 @@ class PulseSequencer:
             e = x_ref - x_meas
             if self.released:
                 return 0.0
-            if abs(e) <= self.e_band and self._coasts_inside(e):
+            if ((abs(e) <= self.hand_over_band() and self._coasts_inside(e))
+                    or self._stalled(x_meas, e)):
                 self.released = True
                 rest.ring_n = 0
                 return 0.0
@@ -285,7 +300,7 @@ class PulseSequencer:
         self.trust.judge(self.pred, d_along, noise)
         law.learn(n, f_p, d)
         law.revision += 1
-        if n == 1 and self.trust.ring:
+        if n == 1 and self.flexible():
             self.trust.d_one = max(self.trust.d_one, abs(d))
         self.n_pulse = 0
 
@@ -321,7 +336,16 @@ class PulseSequencer:
                 return 0.0
         elif abs(e) <= tol:
             return self.settle()
-        if abs(e) > self.e_band:
+        if abs(e) > self.e_band or (abs(e) > self.hand_over_band()
+                                    and not (self.mode == _M_COARSE
+                                             and self.stall_n > STALL_SAMPLES)):
+            if self.mode != _M_COARSE:
+                self.stall_x = x_hat
+                self.stall_n = 0
+            elif self._stalled(self.x_prev, e):
+                self.released = True
+                rest.ring_n = 0
+                return 0.0
             self.mode = Mode.COARSE
             self.released = False
             self.outcome = Outcome.ACTIVE
@@ -332,7 +356,7 @@ class PulseSequencer:
         n, f_p = law.plan_pulse(e)
         if f_p == 0.0 or not math.isfinite(f_p):
             return self.stop(self.refusal)
-        if self.guarded and self.trust.ring:
+        if self.guarded and self.flexible():
             n, f_p = self._ringing_pulse(e, f_p)
         pred = law.predict(n, f_p)
         if self.guarded and math.isfinite(pred):
@@ -398,10 +422,32 @@ class PulseSequencer:
         return min(max(u, -f_max), f_max)
 
     def _coasts_inside(self, e: float) -> bool:
-        """Whether the mass, coasting from its present speed, stops inside ``e_band``."""
+        """Whether the mass, coasting from its present speed, stops inside the hand-over band."""
         v = self.v_hat
         d = self.m_est * v * v / (2.0 * self.f_c_est)
-        return abs(e - math.copysign(d, v)) <= self.e_band
+        return abs(e - math.copysign(d, v)) <= self.hand_over_band()
+
+    def _stalled(self, x: float, e: float) -> bool:
+        """On a machine with a mode, whether the coarse feedback has held the mass within
+        :data:`STALL_BAND` of x (m) for :data:`STALL_SAMPLES` samples, inside ``e_band``."""
+        if abs(x - self.stall_x) > STALL_BAND:
+            self.stall_x = x
+            self.stall_n = 0
+            return False
+        self.stall_n += 1
+        return (self.stall_n > STALL_SAMPLES and abs(e) <= self.e_band and self.guarded
+                and self.flexible())
+
+    def flexible(self) -> bool:
+        """Whether the machine has a mode: told (``f_mode`` > 0) or seen ringing."""
+        return self.trust.flexible or self.trust.ring
+
+    def hand_over_band(self) -> float:
+        """Error band of the hand-over from coarse feedback to pulses, m: ``e_band``, and on a
+        machine with a mode at most :data:`E_BAND_FLEXIBLE`."""
+        if self.guarded and self.flexible():
+            return min(self.e_band, E_BAND_FLEXIBLE)
+        return self.e_band
 
     # -- state -------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:

@@ -21,6 +21,7 @@ __all__ = [
     "CONTROLLER_OUTPUTS",
     "CONTROLLER_SETTINGS",
     "CONTROLLER_SWITCHES",
+    "F_MODE_MAX_T",
     "KIND_CODE",
     "KIND_CODES",
     "MODE_PERIODS",
@@ -40,6 +41,10 @@ __all__ = [
 MODE_PERIODS = 2.5
 #: Longest dwell of rest detection, sample intervals (``rest_samples`` and that of ``f_mode``).
 DWELL_MAX = 1_000_000
+#: Highest mode a controller sampling at T takes, in units of 1/T: above it (omega*T > pi/2)
+#: the mode is too close to the Nyquist frequency 0.5/T for one-sample pulses to be timed
+#: against its ringing or for a loop at T to damp it.
+F_MODE_MAX_T = 0.25
 
 #: Settings of a ``[[controller]]`` table, in the order of the FMU's value references.
 CONTROLLER_SETTINGS: tuple[Variable, ...] = (
@@ -131,8 +136,9 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("f_mode", "Frequency of the machine's slowest mode (0 = rigid or unknown): rest "
              f"lasts at least {MODE_PERIODS:g} periods of it (the ringing a pulse leaves is "
              "waited out before the pulse is judged) and the trust region stays at most 0.5 "
-             "(dual_loop: the mode of the motor on the coupling against the stuck table, "
-             "at most 0.25/T, that its motor loop damps; 0: no motor loop)",
+             "(dual_loop: the mode of the motor on the coupling against the stuck table, that "
+             "its motor loop damps; 0: no motor loop); at most "
+             f"{F_MODE_MAX_T:g}/T (a mode closer to the Nyquist frequency is refused)",
              "Hz",
              0.0, min=0.0, max=1e6, nominal=10.0),
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
@@ -164,11 +170,6 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "from a relaxed drive)", "N", 2.0, min=0.0, min_open=True, max=1e9,
              nominal=1.0, kinds=("dual_loop",)),
 )
-
-#: Highest f_mode*T of the dual-loop controller: its motor loop, sampled at T, damps a
-#: mode only up to omega*T = pi/2.
-DUAL_LOOP_F_MODE_MAX_T = 0.25
-
 
 def _below_f_p_max(name: str, strict: bool):
     def check(values: Mapping[str, Any]) -> tuple[str, str] | None:
@@ -207,17 +208,16 @@ def _mode_dwell_bounded(values: Mapping[str, Any]) -> tuple[str, str] | None:
                       f">= {MODE_PERIODS / (DWELL_MAX * T):g} Hz")
 
 
-def _dual_loop_mode(values: Mapping[str, Any]) -> tuple[str, str] | None:
-    if values["kind"] != "dual_loop":
-        return None
+def _mode_below_quarter_rate(values: Mapping[str, Any]) -> tuple[str, str] | None:
     f_mode, T = values["f_mode"], values["T"]
-    if f_mode * T <= DUAL_LOOP_F_MODE_MAX_T:
+    if f_mode * T <= F_MODE_MAX_T * (1.0 + 1e-12):
         return None
-    return "f_mode", (f"f_mode = {f_mode!r} Hz: the dual_loop controller needs the drive's "
-                      f"mode at f_mode <= {DUAL_LOOP_F_MODE_MAX_T:g}/T = "
-                      f"{DUAL_LOOP_F_MODE_MAX_T / T:g} Hz (T = {T!r} s; 0: no motor loop): its "
-                      "motor loop, sampled at T, cannot damp a mode nearer the Nyquist "
-                      "frequency")
+    return "f_mode", (f"f_mode = {f_mode!r} Hz: above {F_MODE_MAX_T:g}/T = "
+                      f"{F_MODE_MAX_T / T:g} Hz (T = {T!r} s), too close to the sampling's "
+                      f"Nyquist frequency {0.5 / T:g} Hz for a controller sampling at T (a "
+                      "motor loop cannot damp it, pulses cannot wait it out); must be 0 (rigid "
+                      f"or unknown) or f_mode <= {F_MODE_MAX_T:g}/T = {F_MODE_MAX_T / T:g} Hz "
+                      "(or sample faster)")
 
 
 #: Rules between settings (and the sample period ``T``, where it is given: the
@@ -228,7 +228,7 @@ CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
     Constraint(("e_band", "tolerance"), _e_band_above_tolerance),
     Constraint(("t_p_max", "T"), _t_p_max_at_least_T),
     Constraint(("f_mode", "T"), _mode_dwell_bounded),
-    Constraint(("kind", "f_mode", "T"), _dual_loop_mode),
+    Constraint(("f_mode", "T"), _mode_below_quarter_rate),
 )
 
 #: The sample period as a parameter of PulseController.fmu.

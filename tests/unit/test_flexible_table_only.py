@@ -1,0 +1,128 @@
+"""A flexible drive read by the table's encoder alone: modes refused above 0.25/T, ringing
+waited out, one-sample pulses, no runaway on a mode above 0.25/T the controller is not told.
+
+The plants are 100 kg tables on a 50 kg motor (the flexible cases of scenarios/realism.toml
+and realism_mc.toml), run in process with the settings of scenarios/realism.toml.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from papwc.controllers import Outcome, make_controller
+from papwc.controllers.settings import ControllerSettings
+from papwc.master import Maneuver, PhysicsSlave
+from papwc.master.closed_loop import run_closed_loop
+from papwc.master.slave import ControllerSlave
+from papwc.model.controller_settings import F_MODE_MAX_T, MODE_PERIODS, settings_problems
+from papwc.results.pulses import pulse_ratio, pulses_of
+from papwc.scenario import ScenarioError, load_scenario
+
+T = 0.01
+RIGID = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+#: 20 Hz while the table sticks, 2 % damping (realism.toml's flexible case).
+TABLE_20HZ = {**RIGID, "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3}
+#: 40 Hz while the table sticks (realism_mc.toml's flexible_40hz), above 0.25/T at T = 10 ms.
+TABLE_40HZ = {**RIGID, "m": 100.0, "m_d": 50.0, "k_t": 3.158e6, "c_t": 200.0,
+              "x_resolution": 1e-7}
+#: The controllers of scenarios/realism.toml.
+SETTINGS = {
+    "pwc": {"kind": "pwc", "f_p_max": 300.0, "t_p_max": 0.03, "K_c": 0.5, "tolerance": 0.0,
+            "m_est": 150.0, "f_c_est": 80.0, "F_inv0": 1e-5},
+    "papwc": {"kind": "papwc", "f_p_max": 300.0, "t_p_max": 0.03, "K_c": 0.8,
+              "tolerance": 2e-5, "m_est": 150.0, "f_c_est": 80.0, "delta_inv": 1e-5},
+    "exact": {"kind": "exact", "f_p_max": 300.0, "tolerance": 1e-7, "m_est": 150.0,
+              "f_c_est": 80.0},
+}
+
+
+def _run(plant: dict, kind: str, x_ref: float, **settings):
+    values = {**SETTINGS[kind], **settings}
+    s = ControllerSettings.from_mapping(values)
+    assert not s.problems()
+    controller = make_controller(s, T)
+    slave = PhysicsSlave()
+    slave.set_start_values(plant)
+    result = run_closed_loop(slave, ControllerSlave(controller),
+                             Maneuver(x_ref=x_ref, T=T, duration=2.0, iterations=3), s, kind)
+    assert not result.error
+    return controller, result
+
+
+# -- the refusal above 0.25/T ----------------------------------------------------------------
+@pytest.mark.parametrize("kind", ["pwc", "papwc", "exact", "pid"])
+def test_a_mode_above_a_quarter_of_the_sample_rate_is_refused(kind):
+    values = {**ControllerSettings(kind=kind).to_mapping(with_none=True), "T": T}
+    assert F_MODE_MAX_T == 0.25
+    assert not settings_problems({**values, "f_mode": 0.0})
+    assert not settings_problems({**values, "f_mode": 25.0})  # 0.25/T itself is allowed
+    found = settings_problems({**values, "f_mode": 40.0})
+    assert [name for name, _ in found] == ["f_mode"]
+    message = found[0][1]
+    assert "f_mode = 40.0 Hz" in message and "25 Hz" in message and "T = 0.01 s" in message
+    # sampled ten times faster, the same mode is below 0.25/T
+    assert not settings_problems({**values, "T": 1e-3, "f_mode": 40.0})
+
+
+def test_a_scenario_telling_a_mode_above_a_quarter_of_the_sample_rate_is_refused(tmp_path):
+    path = tmp_path / "fast_mode.toml"
+    path.write_text('name = "fast_mode"\n[plant]\nm = 100.0\nm_d = 50.0\nk_t = 3.158e6\n'
+                    '[maneuver]\nx_ref = 0.001\nT = 0.01\n'
+                    '[[controller]]\nkind = "papwc"\nf_mode = 40.0\n')
+    with pytest.raises(ScenarioError, match=r"'f_mode'.*40\.0 Hz.*above 0\.25/T = 25 Hz"):
+        load_scenario(path)
+    path.write_text(path.read_text().replace("f_mode = 40.0", "f_mode = 0.0"))
+    assert load_scenario(path).controllers[0].f_mode == 0.0
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", sorted(SETTINGS))
+def test_an_unknown_mode_above_a_quarter_of_the_sample_rate_does_not_run_away(kind):
+    """f_mode = 0 on a 40 Hz drive sampled at 100 Hz: no pulse beyond max(1.5*|e| + one
+    count, the smallest pulse), no maneuver ends farther than it started, and each one ends
+    settled within its tolerance, stopped with a reason, or still working when time ends."""
+    tolerance = SETTINGS[kind]["tolerance"]
+    for x_ref in (1e-3, 5e-5):
+        controller, result = _run(TABLE_40HZ, kind, x_ref, f_mode=0.0)
+        ratios = pulse_ratio(result.traces, TABLE_40HZ, T)
+        assert max(ratios) <= 1.0 + 1e-9, (x_ref, ratios)
+        for trace in result.traces:
+            x = trace.column("x")
+            assert abs(x_ref - x[-1]) <= abs(x_ref - x[0]), (x_ref, trace.iteration)
+        if controller.outcome == Outcome.SETTLED:
+            assert abs(x_ref - result.traces[-1].column("x")[-1]) <= tolerance + 1e-7
+        elif controller.outcome == Outcome.STOPPED:
+            assert controller.outcome_reason != 0
+
+
+# -- a ringing rest waited out, one-sample pulses ---------------------------------------------
+def _gaps(trace) -> list[tuple[int, int]]:
+    """(width, samples without force before the next pulse) of each pulse but the last."""
+    u = trace.column("u")
+    out = []
+    pulses = pulses_of(trace)
+    for p, q in zip(pulses, pulses[1:], strict=False):
+        last = max(k for k in range(p.k, q.k) if u[k] != 0.0)
+        out.append((p.samples, q.k - last - 1))
+    return out
+
+
+@pytest.mark.parametrize("kind", sorted(SETTINGS))
+def test_a_ringing_rest_is_waited_out_and_the_pulses_are_one_sample(kind):
+    """Told the 20 Hz mode, the controller waits 2.5 periods (13 samples) of the mode after
+    each pulse before the next and pulses one sample at a time; not told, once it has seen
+    the table ring it waits the dwell it learned from the ring."""
+    controller, result = _run(TABLE_20HZ, kind, 1e-3, f_mode=20.0)
+    dwell = controller.mode_samples
+    assert dwell == 13 and MODE_PERIODS == 2.5
+    gaps = [g for trace in result.traces for g in _gaps(trace)]
+    assert len(gaps) >= 3
+    assert all(width == 1 for width, _ in gaps), gaps
+    assert min(gap for _, gap in gaps) >= dwell, gaps
+
+    controller, result = _run(TABLE_20HZ, kind, 1e-3, f_mode=0.0)
+    ring_dwell = controller.rest.ring_dwell
+    assert ring_dwell > 0  # the ringing was seen (in the first iteration at the latest)
+    gaps = _gaps(result.traces[-1])
+    assert all(width == 1 for width, _ in gaps), gaps
+    assert not gaps or min(gap for _, gap in gaps) >= ring_dwell, (ring_dwell, gaps)
