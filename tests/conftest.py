@@ -43,12 +43,18 @@ def module_missing(name: str) -> bool:
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Mark unit and integration tests by folder; skip tests whose extra is missing."""
+    """Mark unit and integration tests by folder; skip tests whose extra is missing.
+
+    Integration tests are slow too (they build FMUs once and run them: seconds), so that
+    ``pytest -m "not slow"`` is the quick loop.
+    """
     for item in items:
         path = Path(str(item.path)).resolve()
         for folder in ("unit", "integration"):
             if (TESTS_DIR / folder) in path.parents:
                 item.add_marker(getattr(pytest.mark, folder))
+                if folder == "integration":
+                    item.add_marker(pytest.mark.slow)
         for marker, module in EXTRA_MODULES.items():
             if item.get_closest_marker(marker) is not None and module_missing(module):
                 item.add_marker(pytest.mark.skip(

@@ -17,23 +17,15 @@ from papwc.master.slave import ControllerSlave
 from papwc.model.controller_settings import F_MODE_MAX_T, MODE_PERIODS, settings_problems
 from papwc.results.pulses import pulse_ratio, pulses_of
 from papwc.scenario import ScenarioError, load_scenario
+from papwc.studies.ring_scan import SETTINGS, TABLE_1  # the controllers of realism.toml
 
 T = 0.01
-RIGID = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+RIGID = TABLE_1
 #: 20 Hz while the table sticks, 2 % damping (realism.toml's flexible case).
 TABLE_20HZ = {**RIGID, "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3}
 #: 40 Hz while the table sticks (realism_mc.toml's flexible_40hz), above 0.25/T at T = 10 ms.
 TABLE_40HZ = {**RIGID, "m": 100.0, "m_d": 50.0, "k_t": 3.158e6, "c_t": 200.0,
               "x_resolution": 1e-7}
-#: The controllers of scenarios/realism.toml.
-SETTINGS = {
-    "pwc": {"kind": "pwc", "f_p_max": 300.0, "t_p_max": 0.03, "K_c": 0.5, "tolerance": 0.0,
-            "m_est": 150.0, "f_c_est": 80.0, "F_inv0": 1e-5},
-    "papwc": {"kind": "papwc", "f_p_max": 300.0, "t_p_max": 0.03, "K_c": 0.8,
-              "tolerance": 2e-5, "m_est": 150.0, "f_c_est": 80.0, "delta_inv": 1e-5},
-    "exact": {"kind": "exact", "f_p_max": 300.0, "tolerance": 1e-7, "m_est": 150.0,
-              "f_c_est": 80.0},
-}
 
 
 def _run(plant: dict, kind: str, x_ref: float, **settings):

@@ -181,15 +181,10 @@ class PulseSequencer:
         self.idle_x = self.idle_ref = math.nan
         self.pulses = 0
         self.first = True
-        self.x_prev = math.nan
-        self.v_hat = 0.0
-        self.pulse_left = 0
-        self.f_pulse = 0.0
-        self.n_pulse = 0
-        self.x_start = 0.0
-        self.waited = 0
-        self.last_n, self.last_f = 0, 0.0
-        self.last_d = 0.0
+        self.x_prev, self.v_hat = math.nan, 0.0
+        # the pulse under way, and the last one (samples, force, displacement)
+        self.pulse_left, self.f_pulse, self.n_pulse, self.x_start, self.waited = 0, 0.0, 0, 0.0, 0
+        self.last_n, self.last_f, self.last_d = 0, 0.0, 0.0
         self.outcome = Outcome.ACTIVE
         self.outcome_reason = Reason.NONE
         self.stopped = False
