@@ -17,6 +17,7 @@ from papwc.analysis.paper import formula_numbers
 from papwc.cli import main
 from papwc.controllers.settings import ControllerSettings
 from papwc.master import FmuSlave, Maneuver, PhysicsSlave, run_closed_loop, run_controller
+from papwc.model.controller_settings import fmu_parameters
 from papwc.scenario import load_scenario
 
 #: The formula rows of paper_numbers.csv (the reading notes' table), value for value.
@@ -76,9 +77,8 @@ def test_reproduce_refuses_zero_workers(tmp_path, capsys):
 
 
 def _fmu_values(settings: ControllerSettings) -> dict:
-    """The settings as PulseController.fmu start values (None -> -1)."""
-    return {name: (-1.0 if settings.get(name) is None else settings.get(name))
-            for name in ControllerSettings.field_names()}
+    """The settings as PulseController.fmu start values (computed ones left at their starts)."""
+    return fmu_parameters(settings.to_mapping(with_none=True))
 
 
 @pytest.mark.parametrize("kind", ["pwc", "papwc"])

@@ -28,7 +28,9 @@ from harness import FMI2_DISCARD, FMI2_ERROR, FmuInstance
 PLANT_SAMPLE = ("m", "c", "ripple", "ripple_phase", "sigma_1", "tau_u")
 CONTROLLER_SAMPLE = ("K_c", "lambda_2", "floor_raise", "k_p", "k_d", "x_ref_offset", "f_mode",
                      "T")
-READ_WITH = {"k_p": {"k_p_given": True}, "k_d": {"k_d_given": True}}
+#: Further parameters a value needs to be read (its switch), or to be allowed by a rule
+#: between parameters (f_mode <= 0.25/T).
+READ_WITH = {"k_p": {"k_p_given": True}, "k_d": {"k_d_given": True}, "f_mode": {"T": 1e-7}}
 
 
 @pytest.fixture(params=["native", "pythonfmu", "controller"])

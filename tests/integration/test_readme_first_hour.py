@@ -43,6 +43,8 @@ def fresh_copy(target: Path) -> Path:
     def ignore(folder: str, names: list[str]) -> set[str]:
         here = Path(folder)
         out = {n for n in names if n in skip or n.endswith(".egg-info")}
+        if here != PROJECT:  # results/ of the checkout's root only (not papwc.results)
+            out.discard("results")
         if here == PROJECT / "build":
             out |= {n for n in names if n != ".gitignore"}
         return out
