@@ -18,8 +18,6 @@ class RunTimeout(Exception):
     """A run went past its time limit (raised between two communication steps)."""
 
 
-#: Communication steps between two looks at the clock of a run with a time limit.
-_CLOCK_EVERY = 256
 #: Set by Ctrl-C or SIGTERM (to the signal's number) while :func:`deferred_interrupt` is
 #: active.
 _INTERRUPT: dict[str, int] = {"requested": 0}

@@ -289,11 +289,11 @@ def test_the_in_process_plant_reads_every_output_from_the_plant_object() -> None
 
 def test_a_step_guard_stops_a_run_between_two_steps() -> None:
     """StepGuard, an observer: past its deadline the run stops at the first look at the clock
-    (every _CLOCK_EVERY steps), and a deferred Ctrl-C stops it after the step under way."""
+    (every StepGuard.CLOCK_EVERY steps), and a deferred Ctrl-C stops it after the step under way."""
     import signal
     import time
 
-    from papwc.interrupts import _CLOCK_EVERY, _INTERRUPT, RunTimeout
+    from papwc.interrupts import _INTERRUPT, RunTimeout
     from papwc.master import ClosedLoop, StepGuard
 
     settings = ControllerSettings(kind="papwc", t_p_max=0.03)
@@ -301,7 +301,7 @@ def test_a_step_guard_stops_a_run_between_two_steps() -> None:
     plant = PhysicsSlave()
     with pytest.raises(RunTimeout, match=r"took longer than 0.5 s \(stopped at t = 0.56"):
         run_controller(plant, settings, Maneuver(iterations=3), observers=[guard])
-    assert guard._steps == _CLOCK_EVERY == 256
+    assert guard._steps == StepGuard.CLOCK_EVERY == 256
     loop = ClosedLoop(PhysicsSlave(), ControllerSlave(make_controller(settings, 0.01)),
                       Maneuver(), observers=[StepGuard()])
     _INTERRUPT["requested"] = signal.SIGINT

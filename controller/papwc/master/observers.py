@@ -16,7 +16,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Protocol
 
 from papwc.controllers import OUTPUT_NAMES
-from papwc.interrupts import _CLOCK_EVERY, _INTERRUPT, RunTimeout, interruption
+from papwc.interrupts import RunTimeout, interrupt_requested, interruption
 from papwc.master.slave import Slave
 from papwc.master.trace import PLANT_COLUMNS, REQUIRED_PLANT_COLUMNS, Trace
 
@@ -171,7 +171,7 @@ class StepGuard:
     :class:`~papwc.interrupts.Terminated`) once :func:`papwc.interrupts.deferred_interrupt`
     has caught a Ctrl-C or SIGTERM (looked at after every step), and
     :class:`~papwc.interrupts.RunTimeout` once ``time.monotonic()`` is past ``deadline``
-    (looked at every ``_CLOCK_EVERY`` steps; the clock costs more than the flag).
+    (looked at every :attr:`CLOCK_EVERY` steps; the clock costs more than the flag).
 
     Parameters
     ----------
@@ -180,6 +180,9 @@ class StepGuard:
     limit : float, optional
         The time limit the deadline stands for, s (for the message).
     """
+
+    #: Communication steps between two looks at the clock of a run with a time limit.
+    CLOCK_EVERY = 256
 
     def __init__(self, deadline: float | None = None, limit: float | None = None) -> None:
         self.deadline = deadline
@@ -204,11 +207,11 @@ class StepGuard:
         t : float
             The communication point reached, s (named in the message).
         """
-        if _INTERRUPT["requested"]:
+        if interrupt_requested():
             raise interruption()
         if self.deadline is not None:
             self._steps += 1
-            if self._steps % _CLOCK_EVERY == 0 and time.monotonic() > self.deadline:
+            if self._steps % self.CLOCK_EVERY == 0 and time.monotonic() > self.deadline:
                 limit = "its time limit" if self.limit is None else f"{self.limit:g} s"
                 raise RunTimeout(f"timed out: the run took longer than {limit} "
                                  f"(stopped at t = {t!r} s)")
