@@ -46,7 +46,7 @@ import json
 import math
 import os
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from pythonfmu import (
@@ -229,20 +229,26 @@ class CheckedSlave(Fmi2Slave):
         params = self._parameters()
         return switched_values(params, {v.name: getattr(self, v.name) for v in params})
 
+    def _parameter_problems(self, raw: Mapping[str, Any]
+                            ) -> tuple[list[tuple[str, str]], list[tuple[str, str]]]:
+        """``(name, message)`` per invalid parameter of the FMU's values ``raw``: the Reals
+        set while their switch is false, and what the model layer refuses of the others."""
+        params = self._parameters()
+        conflicts = switch_conflicts(params, raw)
+        conflicted = {name for name, _ in conflicts}
+        return conflicts, [(name, message) for name, message in problems(
+            params, switched_values(params, raw), self.CONSTRAINTS) if name not in conflicted]
+
     def check(self) -> list[str]:
         """One message per invalid parameter (override to add checks of a model's own)."""
         params = self._parameters()
         switches = {v.name: f"{v.switch} = false selects "
                     + ("the default" if v.optional else "no bound") for v in params if v.switch}
-        raw = {v.name: getattr(self, v.name) for v in params}
-        found = switch_conflicts(params, raw)
-        conflicted = {name for name, _ in found}
-        found += [(name, message) for name, message in problems(
-            params, self.parameter_values(), self.CONSTRAINTS) if name not in conflicted]
-        return [
-            f"parameter {message}" + (f"; {switches[name]}"
-                                      if name in switches and name not in conflicted else "")
-            for name, message in found
+        conflicts, others = self._parameter_problems(
+            {v.name: getattr(self, v.name) for v in params})
+        return [f"parameter {message}" for _, message in conflicts] + [
+            f"parameter {message}" + (f"; {switches[name]}" if name in switches else "")
+            for name, message in others
         ]
 
     # -- to implement ------------------------------------------------------------------------
@@ -386,10 +392,9 @@ class CheckedSlave(Fmi2Slave):
                 and all(isinstance(p, str) for p in fields["_problems"])):
             raise ValueError("field _problems is not a list of strings")
         if fields["_ready"]:
-            params = self._parameters()
-            values = {v.name: fields[v.name] for v in params}
-            found = switch_conflicts(params, values) or problems(
-                params, switched_values(params, values), self.CONSTRAINTS)
+            conflicts, others = self._parameter_problems(
+                {v.name: fields[v.name] for v in self._parameters()})
+            found = conflicts + others
             if found:
                 raise ValueError(f"its parameters are invalid: {found[0][1]}")
         return self.decode_state(dict(fields))
