@@ -200,14 +200,14 @@ class DualLoopController(ExactController):
                                 float(settings.c_t_est), self.T) if f_mode > 0.0 else None)
         self.f_relax = float(settings.f_relax)
         self.relax_max = max(1, int(round(RELAX_MAX_S / self.T)))
-        #: Samples of no force after a pulse's last one: until the spring's force after one
-        #: sample from a relaxed drive peaks, (pi/2 - omega*T/2)/omega, rounded up.
         #: Motor force per unit of the law's height of a one-sample pulse: one sample of
         #: force F on the motor of a relaxed drive pushes the table with at most
         #: 2*F*sin(omega*T/2) (the spring's first peak), so the height the law plans is
         #: the table's push.
         self.one_sample_gain = (1.0 / (2.0 * math.sin(math.pi * f_mode * self.T))
                                 if f_mode > 0.0 else 1.0)
+        #: Samples of no force after a pulse's last one: until the spring's force after one
+        #: sample from a relaxed drive peaks, (pi/2 - omega*T/2)/omega, rounded up.
         self.free_samples = (int(math.ceil(0.25 / (f_mode * self.T) - 0.5 - 1e-9))
                              if f_mode > 0.0 else 0)
         #: Motor encoder reading for the next update, m (set by the host; 0 unconnected).
