@@ -183,6 +183,9 @@ class DualLoopController(ExactController):
     """
 
     kind = "dual_loop"
+    #: Its one-sample pulses are the free drive's (scaled by ``one_sample_gain``): Eq. (3)
+    #: plans them, as before the evidence of the breakaway.
+    evidence_planning = False
     reads_x_d_meas = True
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:

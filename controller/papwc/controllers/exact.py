@@ -45,6 +45,13 @@ less than one sample at the stiction force, Eq. (20). This controller
   (:meth:`ExactController.plan_pulse`): a pulse that did not move proves the breakaway
   lies above its height until the table moves again, so a maneuver after a learned one
   starts and a pulse that crept is evidence, not the end of it;
+* on a table whose breakaway is smooth (two one-sample pulses that moved far less than
+  Eq. (3) says, or Eq. (3) finding no pulse that helps before any moved the table visibly),
+  plans its one-sample pulses on the evidence of the breakaway
+  (:class:`~papwc.controllers.breakaway.BreakawayEvidence`): for the lowest breakaway force
+  still possible, with the excess that moves the table ``trust*|e|`` on a curve fitted to its
+  creeps, so that a table breaking away higher moves less; Eq. (3) keeps planning on a
+  machine with a mode and for the dual-loop kind;
 * stops once ``|e|`` is below what a move can achieve (half the encoder
   resolution, or the model's relative error times the move), when even the
   cautious pulse cannot help a rejected model (``model_rejected``), and after
@@ -60,8 +67,9 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
-from ..model.pulse import b_coulomb, nearest_increasing, pulse_displacement
+from ..model.pulse import b_coulomb, bisect_increasing, nearest_increasing, pulse_displacement
 from .base import Z_DECIDE, PulseControllerBase, Reason
+from .breakaway import BreakawayEvidence
 from .exact_fit import PulseModelEstimator
 from .settings import ControllerSettings
 
@@ -101,6 +109,26 @@ _LB_STEP = 0.002
 _IMPLIED = 8
 #: Smallest relative margin below the lowest breakaway seen, where a new one may lie.
 _LB_MARGIN = 0.03
+#: Where Eq. (3)'s plan refuses with the error above this many times the resolution
+#: and tolerance together, the controller plans on the evidence of the breakaway.
+_GIVE_UP_FAR = 10.0
+#: One-sample pulses that crept (moved less than _FAR_LESS of Eq. (3)) that show a
+#: smooth breakaway.
+_CREEPS = 2
+#: A move planned on the evidence is at most this many times the farthest it holds.
+_EV_EXTRAPOLATE = 2.0
+#: Pulses planned on the evidence that fell short of their plan alike (within a factor
+#: _STEADY, each below _SHORT of it) after which the planned move is raised, at most
+#: _BOOST_MAX times.
+_SHORTFALLS = 3
+_STEADY = 2.0
+_SHORT = 0.5
+_BOOST_MAX = 4.0
+#: A one-sample move not seen (within 3 standard deviations of a measured displacement)
+#: but above this many of them may have been a move: it proves nothing of the breakaway.
+_UNSURE = 2.0
+#: Relative error expected of a move planned on the evidence of the breakaway.
+_EV_PRECISION = 0.5
 #: Largest pulse width searched, samples.
 _N_SEARCH_MAX = 1 << 20
 
@@ -130,6 +158,8 @@ class ExactController(PulseControllerBase):
     """
 
     kind = "exact"
+    #: Whether pulses near breakaway may be planned on the evidence of the breakaway.
+    evidence_planning = True
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
         self.f_s_tol = float(settings.f_s_tol)
@@ -159,6 +189,18 @@ class ExactController(PulseControllerBase):
         #: The last one-sample pulse planned on that evidence: (n, height N, prediction m).
         self._planned: tuple[int, float, float] = (0, 0.0, 0.0)
         self._planned_last = False
+        #: The evidence of the breakaway and of one-sample moves near it.
+        self.breakaway = BreakawayEvidence(settings.f_c_est, settings.m_est, T)
+        #: The lowest breakaway still possible when the present pulse was planned on that
+        #: evidence, N (0: the pulse was not).
+        self.ev_lo = 0.0
+        #: One-sample pulses that moved far less than Eq. (3) says a table breaking away
+        #: at once moves (``_CREEPS`` of them make the breakaway smooth).
+        self.creeps = 0
+        #: Moves over their plans of the last pulses planned on the evidence that moved.
+        self.shortfall: list[float] = []
+        #: A pulse of this maneuver moved the table visibly.
+        self.moved = False
         super().__init__(settings, T)
 
     def reset(self) -> None:
@@ -170,6 +212,9 @@ class ExactController(PulseControllerBase):
         super().reset()
         self.misses = 0
         self.f_lb = 0.0
+        self.breakaway.table_moved()
+        self.ev_lo = 0.0
+        self.moved = False
         self.revision += 1  # f_low may differ
 
     # -- planning ----------------------------------------------------------------------
@@ -192,7 +237,18 @@ class ExactController(PulseControllerBase):
     def f_low(self) -> float:
         """Lowest height it plans with now, N: just above the lowest breakaway force still
         possible (:meth:`f_b_low`) once there is evidence of it, else ``f_floor``."""
+        if self.on_evidence():
+            low = self.breakaway.lowest()
+            if low > 0.0:
+                return min(low, self.settings.f_p_max)
         return self.f_floor
+
+    def on_evidence(self) -> bool:
+        """Whether the pulses near breakaway are planned on the evidence of the breakaway:
+        it showed smooth, on a machine without a mode (told or seen ringing), with
+        ``safeguards``."""
+        return (self.evidence_planning and self.breakaway.smooth and self.guarded
+                and not self.seq.flexible())
 
     def correction(self, n: int, f: float) -> float:
         """Ratio measured/model of the earlier pulses of width n nearest to height f (N).
@@ -321,8 +377,34 @@ class ExactController(PulseControllerBase):
         """
         self._planned_last = self._planned[0] == 1
         self._planned = (0, 0.0, 0.0)
+        self.ev_lo = 0.0
+        if not self.guarded or not math.isfinite(e):
+            return self._plan(e)
+        if self.seq.flexible():
+            # a machine with a mode: a pulse's move depends on the ringing it meets more
+            # than on the breakaway; Eq. (3) plans, the sequencer shrinks the pulses
+            return self._plan_eq3(e)
+        if self.on_evidence():
+            return self._plan_smooth(e)
+        n, f_p = self._plan_eq3(e)
+        if ((f_p == 0.0 and self.seq.refusal in (Reason.NO_MOVE_HELPS, Reason.MODEL_REJECTED))
+                or (f_p != 0.0 and self.seq.may_end_farther(e, f_p, self.predict(n, f_p)))):
+            if (self.evidence_planning and not self.moved
+                    and abs(e) > _GIVE_UP_FAR * (self.estimator.x_resolution
+                                                 + self.settings.tolerance)):
+                # Eq. (3) finds no pulse that helps before any has moved the table
+                # visibly while it is far from the target: the table is not Eq. (3)'s;
+                # plan on the evidence of the breakaway from now on
+                self.breakaway.smooth = True
+                self._planned = (0, 0.0, 0.0)
+                return self._plan_smooth(e)
+        return n, f_p
+
+    def _plan_eq3(self, e: float) -> tuple[int, float]:
+        """:meth:`_plan`, or, where it refuses at the start of a maneuver (or right after a
+        pulse planned so), one sample for the lowest breakaway force :meth:`f_b_low`."""
         n, f_p = self._plan(e)
-        if f_p != 0.0 or not self.guarded or not math.isfinite(e):
+        if f_p != 0.0:
             return n, f_p
         if (self.seq.refusal not in (Reason.NO_MOVE_HELPS, Reason.MODEL_REJECTED)
                 or abs(e) <= max(0.5 * self.estimator.x_resolution, self.settings.tolerance)
@@ -334,10 +416,101 @@ class ExactController(PulseControllerBase):
         f_max = self.settings.f_p_max
         f_min = min(f_b * (1.0 + _LB_STEP), f_max)
         goal = self.trust() * abs(e)
-        f = nearest_increasing(lambda h: self.lowest_breakaway_move(h, f_b), goal, f_min,
-                               f_max)
-        self._planned = (1, f, self.lowest_breakaway_move(f, f_b))
+
+        def move(h: float) -> float:
+            return self.lowest_breakaway_move(h, f_b)
+
+        if move(f_min) > goal:
+            return n, f_p  # even the lowest such pulse would go beyond the trust region
+        # the highest height that moves at most trust*|e| if the table broke away at f_b
+        f = f_max if move(f_max) <= goal else bisect_increasing(move, goal, f_min, f_max)[0]
+        self._planned = (1, f, move(f))
         return 1, math.copysign(f, e)
+
+    def _plan_smooth(self, e: float) -> tuple[int, float]:
+        """Pulse for the error e (m) on a table whose breakaway is smooth.
+
+        A move the model plans wider than one sample is the model's (Eq. (3) with its
+        correction, as on any table, wider than any made only within ``_EXPLORE`` times
+        the farthest move). A one-sample pulse is planned on the evidence of the
+        breakaway (:meth:`_evidence_height`).
+        """
+        if self.pulses >= self.max_pulses:
+            self.seq.refusal = Reason.PULSE_BUDGET
+            return 1, 0.0
+        self.seq.refusal = Reason.NO_MOVE_HELPS
+        if abs(e) <= max(0.5 * self.estimator.x_resolution, self.settings.tolerance):
+            return 1, 0.0
+        toward = math.copysign(1.0, e)
+        n, f_p, goal = self._plan_width(self.trust() * abs(e), self.f_floor)
+        if n > 1:
+            return n, toward * f_p
+        return 1, toward * self._evidence_height(goal, f_p)
+
+    def _plan_width(self, goal: float, f_lo: float) -> tuple[int, float, float]:
+        """The fastest pulse for ``goal`` (m) above ``f_lo`` (N), and the goal it was planned
+        for: wider than any pulse in the history (where the model extrapolates), for at most
+        ``_EXPLORE`` times the farthest any moved, and with ``_NEW_WIDTH`` of it while the
+        model's misfit or its last prediction's error is above ``_EXACT_ENOUGH``."""
+        est = self.estimator
+        n, f_p = self.plan_displacement(goal, f_lo)
+        if est.pulses and n > est.widest:
+            goal = self._explored(goal)
+            if max(est.rel_misfit, self.errors[-1]) > _EXACT_ENOUGH:
+                goal *= _NEW_WIDTH
+            n, f_p = self.plan_displacement(goal, f_lo)
+        return n, f_p, goal
+
+    def _evidence_height(self, goal: float, f_model: float) -> float:
+        """Height (N) of one sample that moves the table at most ``goal`` (m), planned for
+        the lowest breakaway force still possible (:meth:`BreakawayEvidence.lowest`).
+
+        Its excess over that force moves the table ``goal`` on the curve of the evidence
+        that moves it least far for it (:meth:`BreakawayEvidence.plan_excess`; before the
+        evidence has a curve, half of that on Eq. (2) with the friction at the breakaway
+        force): if the table breaks away higher, the pulse moves it less. A pulse that does
+        not move raises that lowest force until the table moves. A move beyond
+        ``_EV_EXTRAPOLATE`` times the farthest creep the evidence holds is planned by the
+        model (``f_model``, N) where it learned one-sample pulses, no higher than the
+        creeps' curve allows; else no farther than that reach.
+        """
+        ev = self.breakaway
+        low = ev.lowest()
+        if not low > 0.0:
+            est = self.estimator
+            low = max(est.f_s_lo, est.f_c_hat)
+        planned = goal
+        goal *= self._boost()
+        reach = _EV_EXTRAPOLATE * ev.farthest()
+        if ev.fitted and goal > reach:
+            # beyond the creeps the evidence holds: as far as Eq. (3) and the one-sample
+            # pulses it learned say, where it learned some, but no higher than the creeps'
+            # curve allows; else no farther than the evidence reaches
+            if any(n_i == 1 for n_i, _, _ in self.estimator.pulses):
+                f = min(low + ev.plan_excess(goal), abs(f_model))
+                f = max(f, low + ev.plan_excess(reach))
+            else:
+                f = low + ev.plan_excess(reach)
+                planned = min(planned, reach)
+        else:
+            f = low + ev.plan_excess(goal)
+        f = min(f, self.settings.f_p_max)
+        self.ev_lo = low
+        self._planned = (1, f, planned)
+        return f
+
+    def _boost(self) -> float:
+        """Factor on the move planned on the evidence: the recent ones all fell as short of
+        their plan (within ``_STEADY`` of each other, and below ``_SHORT``) and no pulse
+        has failed to move the table (pre-sliding: it creeps wherever it is pushed, the same
+        each time) -- the planned move over the longest of their shares of it, at most
+        ``_BOOST_MAX``; else 1."""
+        shares = self.shortfall
+        if self.breakaway.held or len(shares) < _SHORTFALLS or not min(shares) > 0.0:
+            return 1.0
+        if max(shares) > _SHORT or max(shares) > _STEADY * min(shares):
+            return 1.0
+        return min(1.0 / max(shares), _BOOST_MAX)
 
     def f_b_low(self) -> float:
         """The lowest breakaway force still possible now, N (0: no evidence yet).
@@ -443,14 +616,7 @@ class ExactController(PulseControllerBase):
         if trust * d >= d_small:
             if d <= max(0.5 * est.x_resolution, rel * d):
                 return 1, 0.0
-            goal = trust * d
-            n, f_p = self.plan_displacement(goal, f_lo)
-            if est.pulses and n > est.widest:
-                # wider than any pulse it has made: the model extrapolates
-                goal = self._explored(goal)
-                if max(est.rel_misfit, self.errors[-1]) > _EXACT_ENOUGH:
-                    goal *= _NEW_WIDTH
-                n, f_p = self.plan_displacement(goal, f_lo)
+            n, f_p, goal = self._plan_width(trust * d, f_lo)
             n, f_p = self._within_tried(n, f_p, goal, f_lo)
             return n, toward * f_p
         if d_small <= 1.5 * d or abs(d_small - d) <= rel * d_small:
@@ -517,6 +683,34 @@ class ExactController(PulseControllerBase):
         noise = Z_DECIDE * self._meas_sigma()
         est = self.estimator
         est.meas_sigma = self._meas_sigma()
+        ev = self.breakaway
+        visible = math.isfinite(d_along) and abs(d_along) > max(noise, 0.5 * est.x_resolution)
+        self.moved = self.moved or visible
+        if n == 1 and math.isfinite(f_p) and math.isfinite(d_along):
+            moved = visible and d_along > 0.0
+            crept = moved and d_along < _FAR_LESS * self._eq3_reach(abs(f_p))
+            # a move too short to tell from the noise may have been one: it proves nothing of
+            # the breakaway (the table may have stuck anew, lower)
+            unsure = not moved and d_along > _UNSURE * noise / Z_DECIDE
+            if (moved and not crept) or unsure:
+                ev.table_moved()  # a long move (the model's), or one that may have been
+            else:
+                ev.observe(abs(f_p), d_along, moved, self.ev_lo)
+            if crept and not ev.smooth:
+                # far less than a table that breaks away at once moves: a smooth
+                # breakaway (Stribeck friction, a lag), seen twice (once may be noise)
+                self.creeps += 1
+                ev.smooth = self.creeps >= _CREEPS
+            if self.ev_lo > 0.0:
+                self.ev_lo = 0.0
+                self._after_single = True
+                if pred > 0.0 and moved:
+                    self.shortfall = (self.shortfall + [d_along / pred])[-_SHORTFALLS:]
+                if moved and not crept:
+                    est.observe(n, f_p, d)  # a long move: Eq. (3) and its correction learn it
+                return
+        elif visible:
+            ev.table_moved()
         crept = (n == 1 and self._planned[0] == 1 and 0.0 < d_along < _FAR_LESS * pred)
         if math.isfinite(d_along) and math.isfinite(f_p):
             if crept:
@@ -557,9 +751,18 @@ class ExactController(PulseControllerBase):
         1 for a two-pulse move (its first pulse goes away by the smallest pulse,
         whatever e is; the error counts when the way back is planned).
         """
+        if self.on_evidence():
+            return _EV_PRECISION
         if abs(e) < self.displacement(1, self.f_floor) / self.trust():
             return 1.0
         return min(max(self.errors), 0.1)
+
+    def _eq3_reach(self, f: float) -> float:
+        """Move (m) of one sample at f (N) on Eq. (3), the larger with the fitted and with
+        the initial estimates: what a table that breaks away at once moves at least."""
+        s = self.settings
+        prior = pulse_displacement(f, self.T, s.m_est, s.f_c_est, float(s.c_est))
+        return max(self.estimator.displacement(f, 1), prior)
 
     def _meas_sigma(self) -> float:
         """Standard deviation of a displacement measured as a difference of two rests, m."""
@@ -589,7 +792,10 @@ class ExactController(PulseControllerBase):
         out = {**super().law_state(), "errors": list(self.errors), "misses": self.misses,
                "meas_sigma": est.meas_sigma, "fine_error": self.fine_error,
                "after_single": int(self._after_single), "f_lb": self.f_lb,
-               "implied": list(self.implied), "planned": [float(v) for v in self._planned]}
+               "implied": list(self.implied), "planned": [float(v) for v in self._planned],
+               "ev_lo": self.ev_lo, "creeps": self.creeps, "moved": int(self.moved),
+               "shortfall": list(self.shortfall)}
+        out.update({f"breakaway.{k}": v for k, v in self.breakaway.state().items()})
         out.update({f"estimator.{k}": v for k, v in est.state().items()})
         return out
 
@@ -607,6 +813,16 @@ class ExactController(PulseControllerBase):
         self.implied = implied
         n_plan, f_plan, pred = (float(v) for v in values["planned"])
         self._planned = (int(n_plan), f_plan, pred)
+        self.ev_lo = float(values["ev_lo"])
+        self.creeps = int(values["creeps"])
+        self.moved = bool(values["moved"])
+        shortfall = [float(v) for v in values["shortfall"]]
+        if len(shortfall) > _SHORTFALLS:
+            raise ValueError(f"law.shortfall holds {len(shortfall)} numbers, at most "
+                             f"{_SHORTFALLS}")
+        self.shortfall = shortfall
+        self.breakaway.set_state({k.split(".", 1)[1]: v for k, v in values.items()
+                                  if k.startswith("breakaway.")})
         self.estimator.meas_sigma = float(values["meas_sigma"])
         self.fine_error, self._after_single = (float(values["fine_error"]),
                                                bool(values["after_single"]))

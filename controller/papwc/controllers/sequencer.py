@@ -354,14 +354,19 @@ class PulseSequencer:
         if self.guarded and self.flexible():
             n, f_p = self._ringing_pulse(e, f_p)
         pred = law.predict(n, f_p)
-        if self.guarded and math.isfinite(pred):
-            # The pulse must not leave the mass farther than the maneuver started, even if
-            # it moves 1/trust times the prediction.
-            step = math.copysign(pred, f_p)
-            after = max(abs(e - step), abs(e - step / max(self.trust(), TRUST_MIN)))
-            if after > abs(self.e0) and after > abs(e):
-                return self.stop(Reason.NO_MOVE_HELPS)
+        if self.guarded and self.may_end_farther(e, f_p, pred):
+            return self.stop(Reason.NO_MOVE_HELPS)
         return self.fire(n, f_p, pred, x_hat)
+
+    def may_end_farther(self, e: float, f_p: float, pred: float) -> bool:
+        """Whether a pulse of height f_p (N) predicted to move pred (m) may leave the mass
+        farther than the maneuver started (and than now, error e m), should it move 1/trust
+        times the prediction: the sequencer does not fire it."""
+        if not math.isfinite(pred):
+            return False
+        step = math.copysign(pred, f_p)
+        after = max(abs(e - step), abs(e - step / max(self.trust(), TRUST_MIN)))
+        return after > abs(self.e0) and after > abs(e)
 
     def _ringing_pulse(self, e: float, f_p: float) -> tuple[int, float]:
         """The pulse on a machine seen ringing: one sample; at ``f_low`` once a sample has
