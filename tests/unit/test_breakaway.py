@@ -74,10 +74,10 @@ def test_the_curve_found_from_staircases_plans_within_the_true_move():
     assert ev.fitted and len(ev.moves) <= KEEP
     for goal in (2e-7, 1e-6, 5e-6):
         eps = ev.plan_excess(goal)
-        assert 0.0 < eps and _move(eps) <= 1.5 * goal  # measured: 0.95-1.1 times the goal
+        assert 0.0 < eps and _move(eps) <= 1.5 * goal  # measured: 0.60-0.89 times the goal
     draws = [rnd.uniform(B_LO, B_HI) for _ in range(1000)]
     below = sum(1 for b in draws if b < ev.fresh) / len(draws)
-    assert below <= 0.05  # measured: 0.0
+    assert below <= 0.05  # measured: 0.024 (fresh stick from 122.0 N; draws from 121.6 N)
 
 
 def test_the_curve_is_fitted_to_the_newest_moves():
