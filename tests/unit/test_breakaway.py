@@ -20,7 +20,8 @@ from papwc.controllers.settings import ControllerSettings
 
 T = 0.01
 #: The curve of a table without lag near breakaway (realism_mc.toml's draw 0, measured:
-#: 0.2 um at 1 N, 2.9 um at 10 N) and its breakaway forces, N.
+#: 0.2 um at 1 N, 2.9 um at 10 N), and breakaway forces drawn as on its draw 1
+#: (130 N +- 6.4 %), N.
 A, P = 2.0e-7, 1.15
 B_LO, B_HI = 121.6, 138.4
 
