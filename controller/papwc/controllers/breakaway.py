@@ -102,6 +102,9 @@ class BreakawayEvidence:
         self.moves: list[tuple[float, float, float, float]] = []
         self.fresh = 0.0
         self.held = False
+        #: The curves of :meth:`fit` by ``f_lb`` and the moves they were fitted to (derived,
+        #: emptied whenever the moves change): a plan asks for them more than once.
+        self._fits: dict[tuple, list[tuple[float, float, float]]] = {}
 
     # -- the breakaway ------------------------------------------------------------------
     def table_moved(self) -> None:
@@ -189,6 +192,7 @@ class BreakawayEvidence:
         low = max(low, lo) if low < f else lo
         self.f_lb = 0.0
         self.moves = (self.moves + [(f, lo, low, max(d, 0.0))])[-KEEP:]
+        self._fits.clear()
         self.update_fresh()
 
     @property
@@ -210,6 +214,13 @@ class BreakawayEvidence:
         For each exponent of a grid over ``P_RANGE`` the scale is found by golden-section
         search. Without ``MIN_MOVES`` moves there is no curve.
         """
+        key = (self.f_lb, *chosen)  # the fit reads f_lb too
+        if key not in self._fits:
+            self._fits[key] = self._fit(chosen)
+        return self._fits[key]
+
+    def _fit(self, chosen: list[tuple[float, float, float, float]]
+             ) -> list[tuple[float, float, float]]:
         moves = [(f, lo, d) for f, lo, _, d in chosen if d > 0.0]
         if len(moves) < MIN_MOVES:
             return []
@@ -275,3 +286,4 @@ class BreakawayEvidence:
                       for i in range(0, len(flat), 4)]
         self.fresh = float(values["fresh"])
         self.held = bool(values["held"])
+        self._fits.clear()

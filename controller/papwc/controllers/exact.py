@@ -435,7 +435,7 @@ class ExactController(PulseControllerBase):
         the farthest move). A one-sample pulse is planned on the evidence of the
         breakaway (:meth:`_evidence_height`).
         """
-        if self.pulses >= self.max_pulses:
+        if self.budget_spent():
             self.seq.refusal = Reason.PULSE_BUDGET
             return 1, 0.0
         self.seq.refusal = Reason.NO_MOVE_HELPS
@@ -585,7 +585,7 @@ class ExactController(PulseControllerBase):
         if not math.isfinite(e):
             self.seq.refusal = Reason.INVALID_MEASUREMENT
             return 1, 0.0
-        if self.pulses >= self.max_pulses:
+        if self.budget_spent():
             self.seq.refusal = Reason.PULSE_BUDGET
             return 1, 0.0
         est = self.estimator
@@ -717,7 +717,7 @@ class ExactController(PulseControllerBase):
                 # far less than even a breakaway at f_b_low would move it: pre-sliding or a
                 # creep below breakaway, evidence that the breakaway lies above (a probe)
                 self.f_lb = max(self.f_lb, abs(f_p))
-            elif abs(d_along) > max(noise, 0.5 * est.x_resolution):
+            elif visible:
                 if n == 1 and d_along > 0.0:
                     # broke away between f_lb and f_p, or where its move says
                     f_b = self.f_lb or self.implied_breakaway(abs(f_p), d_along)
