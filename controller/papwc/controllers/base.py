@@ -9,7 +9,9 @@ A pulse controller is built from three parts, each a class with named state:
 
 A control law subclasses :class:`PulseControllerBase` and implements
 :meth:`~PulseControllerBase.plan_pulse` and :meth:`~PulseControllerBase.learn`;
-it may predict a pulse's displacement (:meth:`~PulseControllerBase.predict`),
+it may predict a pulse's displacement (:meth:`~PulseControllerBase.predict`, its model,
+which the trust region judges; :meth:`~PulseControllerBase.reach`, on all its evidence,
+which the sequencer's farther-than-the-start test reads),
 say how exactly the error must be known before a move
 (:meth:`~PulseControllerBase.precision`), add observables in ``estimates`` and
 state of its own in :meth:`~PulseControllerBase.law_state`. Its pulses stay inside
@@ -151,6 +153,12 @@ class PulseControllerBase(Controller):
     def predict(self, n: int, f_p: float) -> float:
         """Displacement (m, >= 0, along f_p) the model predicts for the pulse; NaN: no model."""
         return math.nan
+
+    def reach(self, n: int, f_p: float) -> float:
+        """Displacement (m, >= 0, along f_p) the pulse is expected to make on the evidence the
+        law has (the sequencer fires no pulse that may end farther than it started, should
+        it move this over the trust); by default :meth:`predict`."""
+        return self.predict(n, f_p)
 
     @property
     def f_low(self) -> float:

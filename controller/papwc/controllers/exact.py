@@ -680,9 +680,9 @@ class ExactController(PulseControllerBase):
         """
         pred = self.seq.pred
         d_along = d if f_p > 0.0 else -d
-        noise = Z_DECIDE * self._meas_sigma()
+        noise = Z_DECIDE * self.rest.sigma_move()
         est = self.estimator
-        est.meas_sigma = self._meas_sigma()
+        est.meas_sigma = self.rest.sigma_move()
         ev = self.breakaway
         visible = math.isfinite(d_along) and abs(d_along) > max(noise, 0.5 * est.x_resolution)
         self.moved = self.moved or visible
@@ -763,10 +763,6 @@ class ExactController(PulseControllerBase):
         s = self.settings
         prior = pulse_displacement(f, self.T, s.m_est, s.f_c_est, float(s.c_est))
         return max(self.estimator.displacement(f, 1), prior)
-
-    def _meas_sigma(self) -> float:
-        """Standard deviation of a displacement measured as a difference of two rests, m."""
-        return math.sqrt(2.0 * self.rest.sigma2 / (self.rest.dwell + 1))
 
     def estimates(self) -> dict[str, float]:
         """``b_hat`` (Eq. (4) at f_p_max, m/s**2), ``f_c_hat``, ``m_hat``, ``c_hat``, f_s bracket.

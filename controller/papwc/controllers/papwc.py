@@ -7,6 +7,7 @@ import math
 from .base import PulseControllerBase
 from .estimators import Rls2
 from .pwc import REGRESSOR_PLANNED
+from .sequencer import Z_DECIDE
 from .settings import ControllerSettings
 
 #: ``floor_mode``: a pulse that did not move raises the floor and is not learned.
@@ -18,6 +19,45 @@ FLOOR_LEARN = 2
 #: With safeguards: a pulse that moved less than this fraction of its Eq. (4) prediction
 #: raises the floor as a pulse that did not move.
 FAR_LESS = 0.25
+
+
+def creep_prediction(f_p: float, eq4: float, creeps: tuple[float, float, float, float]
+                     ) -> float:
+    """Move (m) of a one-sample pulse at the floor, f_p N, after pulses that crept.
+
+    One-sample pulses that moved less than Eq. (4) predicts (a height near a breakaway
+    that friction keeps up at low speed: Stribeck, an actuator lag) are the evidence
+    near the floor; those that moved less than ``FAR_LESS`` of it raised the floor.
+    Where the last two grew with their height, as a creep does, the next pulse at the
+    floor is predicted to move
+
+    * as far as the last one if it is no higher;
+    * else as the last two grew, extrapolated geometrically in the height (for a move
+      that grows as a power of the excess over the breakaway, an overestimate);
+
+    at least ``FAR_LESS`` times Eq. (4) (the least move Eq. (4) learns from) and never
+    more than Eq. (4). Without two such creeps, Eq. (4).
+
+    Parameters
+    ----------
+    f_p : float
+        Height of the pulse, N (> 0).
+    eq4 : float
+        Eq. (4)'s move for it, m.
+    creeps : tuple of float
+        ``(f_0, d_0, f_1, d_1)``: height (N) and move (m) of the one-sample pulse before
+        the last that moved less than Eq. (4) predicts, and of the last (0: none).
+
+    Returns
+    -------
+    float
+        Predicted move along the pulse, m.
+    """
+    f_0, d_0, f_1, d_1 = creeps
+    if not (f_1 > f_0 > 0.0 and d_1 > d_0 > 0.0):
+        return eq4
+    grown = d_1 if f_p <= f_1 else d_1 * (d_1 / d_0) ** ((f_p - f_1) / (f_1 - f_0))
+    return min(eq4, max(FAR_LESS * eq4, grown))
 
 
 def papwc_amplitude(f_c: float, f_p: float, t_p: float, T_x: float) -> float:
@@ -84,6 +124,10 @@ class PapwcController(PulseControllerBase):
         #: Height (N, > 0) and width (s) of the last pulse as planned at f_p_max by Eq. (6).
         self.f_p_plan = settings.f_p_max
         self.t_p_plan = 0.0
+        #: Height (N) and move (m) of the one-sample pulse before the last that moved less
+        #: than Eq. (4) predicts, and of the last (0: none since one moved as far as Eq. (4)
+        #: has it): :func:`creep_prediction`.
+        self.creeps = (0.0, 0.0, 0.0, 0.0)
 
     @property
     def f_c_hat(self) -> float:
@@ -126,6 +170,14 @@ class PapwcController(PulseControllerBase):
                 return n, math.copysign(f_p, e)
             n -= 1
 
+    def reach(self, n: int, f_p: float) -> float:
+        """Eq. (4) (:meth:`predict`); for a one-sample pulse at the floor after one-sample
+        pulses that moved less than Eq. (4) has them, :func:`creep_prediction`, m (>= 0)."""
+        eq4 = self.predict(n, f_p)
+        if n == 1 and abs(f_p) <= self.f_p_floor and not self.seq.flexible():
+            return creep_prediction(abs(f_p), eq4, self.creeps)
+        return eq4
+
     def predict(self, n: int, f_p: float) -> float:
         """Eq. (4) with Eq. (12): ``(A1*f_p**2 - A2*f_p)*(n*T)**2`` at |f_p| (>= 0), m."""
         t = n * self.T
@@ -143,6 +195,8 @@ class PapwcController(PulseControllerBase):
         estimator skips it.
         """
         d_along = d if f_p > 0.0 else -d
+        if n == 1:
+            self._keep_creep(f_p, d_along)
         if self.guarded and d_along > 0.0 and d_along < FAR_LESS * self.predict(n, f_p):
             self._raise_floor(f_p)
             return
@@ -164,6 +218,17 @@ class PapwcController(PulseControllerBase):
             # An estimate by which f_p_max could not move the mass is rejected.
             self.estimator.set_state(before)
 
+    def _keep_creep(self, f_p: float, d_along: float) -> None:
+        """Keep a one-sample pulse of f_p N that moved d_along (m) less than Eq. (4) has it,
+        if the move stands out of the noise of a measured displacement (``Z_DECIDE``
+        standard deviations); forget the creeps after one that moved as far as Eq. (4) or
+        that did not move visibly (the creeps no longer tell what the next pulse does: a
+        table held back by a compliant drive reads noise while the drive winds up)."""
+        if Z_DECIDE * self.rest.sigma_move() < d_along < self.predict(1, f_p):
+            self.creeps = (*self.creeps[2:], abs(f_p), d_along)
+        else:
+            self.creeps = (0.0, 0.0, 0.0, 0.0)
+
     def _raise_floor(self, f_p: float) -> None:
         """Lift the amplitude floor to ``1 + floor_raise`` times |f_p| (N), at most f_p_max."""
         self.f_p_floor = min(max(self.f_p_floor, abs(f_p) * (1.0 + self.settings.floor_raise)),
@@ -177,9 +242,12 @@ class PapwcController(PulseControllerBase):
         """The floor, the estimates A1, A2, the covariance P and the pulse planned at f_p_max."""
         a1, a2, p11, p12, p22 = self.estimator.state()
         return {**super().law_state(), "A1": a1, "A2": a2, "P11": p11, "P12": p12, "P22": p22,
-                "f_p_plan": self.f_p_plan, "t_p_plan": self.t_p_plan}
+                "f_p_plan": self.f_p_plan, "t_p_plan": self.t_p_plan,
+                "creeps": list(self.creeps)}
 
     def set_law_state(self, values) -> None:
         super().set_law_state(values)
         self.estimator.set_state([values[k] for k in ("A1", "A2", "P11", "P12", "P22")])
         self.f_p_plan, self.t_p_plan = float(values["f_p_plan"]), float(values["t_p_plan"])
+        f_0, d_0, f_1, d_1 = (float(v) for v in values["creeps"])
+        self.creeps = (f_0, d_0, f_1, d_1)

@@ -193,6 +193,11 @@ class RestDetector:
         """Standard error of :meth:`x_hat`, m."""
         return math.sqrt(self.sigma2 / self.n)
 
+    def sigma_move(self) -> float:
+        """Standard deviation of a displacement measured as the difference of two rests of
+        the dwell, m."""
+        return math.sqrt(2.0 * self.sigma2 / max(self.dwell + 1, 1))
+
     def end_run(self, force_free: bool) -> None:
         """A run of readings ends: if it was a force-free rest, its spread updates the noise."""
         n = self.n

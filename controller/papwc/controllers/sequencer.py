@@ -33,9 +33,11 @@ a loop which delivers the force one sample late is not mistaken for a pulse that
 did not move. The mass is assumed at rest when a maneuver starts.
 
 With ``safeguards`` (the default) the sequencer stops a maneuver after
-``max_pulses`` pulses and never fires a pulse whose predicted displacement would
-leave the mass farther from the target than the maneuver started, even if it
-moves 1/trust times the prediction (:class:`~.trust.TrustRegion`).
+``max_pulses`` pulses and never fires a pulse whose expected displacement (the law's
+``reach``: its model's prediction, or what its evidence says where that knows better)
+would leave the mass farther from the target than the maneuver started, even if it
+moves 1/trust times that (:class:`~.trust.TrustRegion`, which judges the model's
+prediction).
 
 On a machine with a mode, told (``f_mode`` > 0) or seen ringing (a mode the settings did
 not name, see :mod:`.rest`), a pulse's move depends on the ringing it meets more than on
@@ -106,6 +108,8 @@ class Law(Protocol):
 
     def predict(self, n: int, f_p: float) -> float: ...
 
+    def reach(self, n: int, f_p: float) -> float: ...
+
     def learn(self, n: int, f_p: float, d: float) -> None: ...
 
     def precision(self, e: float) -> float: ...
@@ -119,7 +123,7 @@ class PulseSequencer:
     Parameters
     ----------
     law : Law
-        The control law: ``plan_pulse``, ``predict``, ``learn``, ``precision``,
+        The control law: ``plan_pulse``, ``predict``, ``reach``, ``learn``, ``precision``,
         ``budget_spent``.
     rest : RestDetector
         Rest detection of the controller.
@@ -291,7 +295,7 @@ class PulseSequencer:
         self.last_d = d
         d_along = d if f_p > 0.0 else -d
         rest = self.rest
-        noise = Z_DECIDE * math.sqrt(2.0 * rest.sigma2 / max(rest.dwell + 1, 1))
+        noise = Z_DECIDE * rest.sigma_move()
         self.trust.judge(self.pred, d_along, noise)
         law.learn(n, f_p, d)
         law.revision += 1
@@ -354,7 +358,7 @@ class PulseSequencer:
         if self.guarded and self.flexible():
             n, f_p = self._ringing_pulse(e, f_p)
         pred = law.predict(n, f_p)
-        if self.guarded and self.may_end_farther(e, f_p, pred):
+        if self.guarded and self.may_end_farther(e, f_p, law.reach(n, f_p)):
             return self.stop(Reason.NO_MOVE_HELPS)
         return self.fire(n, f_p, pred, x_hat)
 
