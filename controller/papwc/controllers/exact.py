@@ -388,7 +388,7 @@ class ExactController(PulseControllerBase):
             return self._plan_smooth(e)
         n, f_p = self._plan_eq3(e)
         if ((f_p == 0.0 and self.seq.refusal in (Reason.NO_MOVE_HELPS, Reason.MODEL_REJECTED))
-                or (f_p != 0.0 and self.seq.may_end_farther(e, f_p, self.predict(n, f_p)))):
+                or (f_p != 0.0 and self.seq.may_end_farther(e, f_p, self.reach(n, f_p)))):
             if (self.evidence_planning and not self.moved
                     and abs(e) > _GIVE_UP_FAR * (self.estimator.x_resolution
                                                  + self.settings.tolerance)):
@@ -680,9 +680,9 @@ class ExactController(PulseControllerBase):
         """
         pred = self.seq.pred
         d_along = d if f_p > 0.0 else -d
-        noise = Z_DECIDE * self.rest.sigma_move()
         est = self.estimator
         est.meas_sigma = self.rest.sigma_move()
+        noise = Z_DECIDE * est.meas_sigma
         ev = self.breakaway
         visible = math.isfinite(d_along) and abs(d_along) > max(noise, 0.5 * est.x_resolution)
         self.moved = self.moved or visible
