@@ -360,8 +360,16 @@ class ExactController(PulseControllerBase):
         return n, self._amplitude(d, n, f_lo, f_max)
 
     def _amplitude(self, d: float, n: int, f_lo: float, f_hi: float) -> float:
-        """Height in [f_lo, f_hi] whose corrected displacement over n samples is closest to d."""
-        return nearest_increasing(lambda f: self.displacement(n, f), d, f_lo, f_hi)
+        """Height in [f_lo, f_hi] whose corrected displacement over n samples is closest to d,
+        and not beyond it where the correction steps (between the heights of two pulses
+        it interpolates): there the highest height below the step."""
+        def move(f: float) -> float:
+            return self.displacement(n, f)
+
+        f = nearest_increasing(move, d, f_lo, f_hi)
+        if f > f_lo and move(f) > d * (1.0 + 1e-12):
+            f = bisect_increasing(move, d, f_lo, f_hi)[0]
+        return f
 
     def plan_pulse(self, e: float) -> tuple[int, float]:
         """Pulse for the error e (m): :meth:`_plan`, or, where that finds no pulse that
