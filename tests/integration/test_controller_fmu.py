@@ -520,21 +520,26 @@ FLEXIBLE = {"m": 100.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0, "m_d": 50.0, "k_
             "c_t": 251.3, "x_resolution": 1e-7, "x_d_resolution": 1e-7}
 DUAL = ControllerSettings(kind="dual_loop", f_p_max=300.0, tolerance=1e-7, m_est=150.0,
                           f_c_est=80.0, x_resolution=1e-7, f_mode=20.0, m_d_est=50.0)
+#: The same, the mode identified from the motor encoder's ringing after its probe.
+DUAL_IDENTIFIED = dataclasses.replace(DUAL, f_mode=0.0, identify_mode=True)
 
 
 @pytest.mark.parametrize("timing", ["immediate", "delayed"])
+@pytest.mark.parametrize("settings", [DUAL, DUAL_IDENTIFIED], ids=["f_mode", "identified"])
 def test_fmu_dual_loop_equals_the_python_controller_bit_for_bit(
-    pulse_controller_fmu: Path, friction_plant_fmu: Path, timing: str
+    pulse_controller_fmu: Path, friction_plant_fmu: Path, timing: str,
+    settings: ControllerSettings
 ) -> None:
     """The dual_loop kind in PulseController.fmu, its input x_d_meas connected by the master,
     around FrictionPlant.fmu: every column of three iterations equal to the Python
-    controller around the in-process plant, the motor encoder's columns too."""
+    controller around the in-process plant, the motor encoder's columns too; with the mode
+    told (f_mode) and identified (identify_mode)."""
     maneuver = Maneuver(x_ref=1e-3, T=T, duration=2.0, iterations=3, timing=timing)
-    with (controller_fmu(pulse_controller_fmu, DUAL, T) as controller,
+    with (controller_fmu(pulse_controller_fmu, settings, T) as controller,
           FmuSlave(friction_plant_fmu) as plant):
         plant.set_start_values(FLEXIBLE)
-        result = run_closed_loop(plant, controller, maneuver, DUAL)
-    reference = python_run(DUAL, FLEXIBLE, maneuver)
+        result = run_closed_loop(plant, controller, maneuver, settings)
+    reference = python_run(settings, FLEXIBLE, maneuver)
     assert_same_runs(result, reference)
     for ta, tb in zip(result.traces, reference.traces, strict=True):
         assert ta.column("x_d_meas") == tb.column("x_d_meas")

@@ -32,9 +32,18 @@ against the stuck table: omega = 2*pi*f_mode = sqrt(k_t/m_d)), the motor mass
 at T can damp such a mode only well below the Nyquist frequency: ``f_mode`` must
 lie in [0, :data:`F_MODE_MAX_T`/T] (the settings refuse others); with ``f_mode``
 = 0 (no drive model) there is no motor loop and the controller is the exact-model
-controller on the table's encoder, with its rest and trust of a rigid table. When the drive
-does not relax within :data:`RELAX_MAX_S` seconds (a drive unlike its model), the
-controller stops with the reason ``model_rejected`` and outputs 0.
+controller on the table's encoder, with its rest and trust of a rigid table. With
+``f_mode`` = 0 and ``identify_mode``, the mode is identified instead: at the first sample
+a probe of one sample of :data:`PROBE_SHARE` times ``f_c_est`` on the motor (the spring's
+first peak, at most twice that, stays below the friction that holds the table), then no
+force while :class:`~.mode_id.ModeIdentifier` fits the free ringing the motor encoder
+shows (at most :data:`PROBE_WAIT_S`); with a mode within 0.25/T the motor loop is built
+on it (with ``m_d_est`` and ``c_t_est``, as for a mode told), the ringing the table-only
+rest detection saw is forgotten, and the maneuver's first pulse waits for the relaxed
+drive. Without one (the motor encoder not connected, a rigid drive), it goes on on the
+table's encoder alone, and takes any later free ringing of a stuck table into the fit.
+When the drive does not relax within :data:`RELAX_MAX_S` seconds (a drive unlike its
+model), the controller stops with the reason ``model_rejected`` and outputs 0.
 
 The host sets :attr:`DualLoopController.x_d_meas` (m) before each
 :meth:`~DualLoopController.update` (the controller slave and PulseController.fmu
@@ -56,10 +65,12 @@ from typing import Any
 from ..model.controller_settings import F_MODE_MAX_T
 from .exact import ExactController
 from .interface import Mode, Outcome, Reason
+from .mode_id import ModeIdentifier
 from .sequencer import X_LIMIT
 from .settings import ControllerSettings
 
-__all__ = ["DualLoopController", "MotorLoop", "F_MODE_MAX_T", "LOOP_POLE", "RELAX_SAMPLES"]
+__all__ = ["DualLoopController", "MotorLoop", "F_MODE_MAX_T", "LOOP_POLE", "PROBE_SHARE",
+           "PROBE_WAIT_S", "RELAX_SAMPLES"]
 
 #: Poles of the motor loop (z-plane, both): 0 would be deadbeat; a little above it keeps
 #: the loop damped with the drive model a few percent off.
@@ -68,6 +79,10 @@ LOOP_POLE = 0.2
 RELAX_SAMPLES = 3
 #: Longest the drive may take to relax, s: beyond it the controller stops.
 RELAX_MAX_S = 1.0
+#: The probe of the mode's identification: one sample of this share of ``f_c_est``...
+PROBE_SHARE = 0.4
+#: ... and the longest wait for the ringing to identify, s.
+PROBE_WAIT_S = 0.5
 #: Least fraction of the motor's move over a pulse's first sample (on the model) that its
 #: encoder must show; less stops the controller (``invalid_measurement``).
 MOTOR_FOLLOWS = 0.1
@@ -179,7 +194,7 @@ class DualLoopController(ExactController):
     """Exact-model pulses from a relaxed drive, a motor loop between them (see the module).
 
     It reads the settings of kind ``exact`` and ``f_mode`` (Hz, in [0, 0.25/T]),
-    ``m_d_est`` (kg), ``c_t_est`` (N.s/m) and ``f_relax`` (N).
+    ``m_d_est`` (kg), ``c_t_est`` (N.s/m), ``f_relax`` (N) and ``identify_mode``.
     """
 
     kind = "dual_loop"
@@ -198,24 +213,79 @@ class DualLoopController(ExactController):
         # before each, so neither the rest's dwell nor the trust region need the mode.
         super().__init__(dataclasses.replace(settings, f_mode=0.0), T)
         self.settings = settings
-        #: The motor loop (None with f_mode = 0: no drive model, the table's encoder alone).
-        self.motor = (MotorLoop(2.0 * math.pi * f_mode, float(settings.m_d_est),
-                                float(settings.c_t_est), self.T) if f_mode > 0.0 else None)
         self.f_relax = float(settings.f_relax)
         self.relax_max = max(1, int(round(RELAX_MAX_S / self.T)))
+        #: The motor loop (None without a mode: f_mode = 0 and none identified yet).
+        self.motor: MotorLoop | None = None
+        self.one_sample_gain = 1.0
+        self.free_samples = 0
+        #: The identification of the mode from the motor encoder's ringing (f_mode = 0 and
+        #: ``identify_mode``), and the samples since its probe (-1: not fired yet).
+        self.mode_id = (ModeIdentifier(self.T, float(settings.x_resolution))
+                        if f_mode == 0.0 and settings.identify_mode else None)
+        self.probe_k = -1
+        self.probe_max = max(1, int(round(PROBE_WAIT_S / self.T)))
+        if f_mode > 0.0:
+            self._use_mode(f_mode, float(settings.c_t_est))
+        #: Motor encoder reading for the next update, m (set by the host; 0 unconnected).
+        self.x_d_meas = 0.0
+        #: Force output at the last update while there is no motor loop, N.
+        self.u_last = 0.0
+        #: The maneuver's first sample waits for a relaxed drive (the mode was identified
+        #: from a probe's ringing within it).
+        self.wait_relaxed = False
+        self._reset_drive()
+
+    def _use_mode(self, f_mode: float, c_t: float) -> None:
+        """Build the motor loop for the mode f_mode (Hz) with the coupling's damping c_t
+        (N.s/m) and the motor mass ``m_d_est``."""
+        self.motor = MotorLoop(2.0 * math.pi * f_mode, float(self.settings.m_d_est), c_t, self.T)
         #: Motor force per unit of the law's height of a one-sample pulse: one sample of
         #: force F on the motor of a relaxed drive pushes the table with at most
         #: 2*F*sin(omega*T/2) (the spring's first peak), so the height the law plans is
         #: the table's push.
-        self.one_sample_gain = (1.0 / (2.0 * math.sin(math.pi * f_mode * self.T))
-                                if f_mode > 0.0 else 1.0)
+        self.one_sample_gain = 1.0 / (2.0 * math.sin(math.pi * f_mode * self.T))
         #: Samples of no force after a pulse's last one: until the spring's force after one
         #: sample from a relaxed drive peaks, (pi/2 - omega*T/2)/omega, rounded up.
-        self.free_samples = (int(math.ceil(0.25 / (f_mode * self.T) - 0.5 - 1e-9))
-                             if f_mode > 0.0 else 0)
-        #: Motor encoder reading for the next update, m (set by the host; 0 unconnected).
-        self.x_d_meas = 0.0
-        self._reset_drive()
+        self.free_samples = int(math.ceil(0.25 / (f_mode * self.T) - 0.5 - 1e-9))
+
+    def _identify(self, x_d: float, x_meas: float) -> None:
+        """Take the readings into the identification of the mode; once it has one (within
+        0.25/T), between pulses and coarse moves, build the motor loop."""
+        mode_id = self.mode_id
+        # while the probe rings the drive, friction holds the table (the probe is below it):
+        # its reading wanders by noise alone, whose band is not known yet
+        probing = 0 <= self.probe_k < self.probe_max
+        mode_id.observe(x_d - x_meas, x_meas, self.u_last,
+                        math.inf if probing else self.rest.band)
+        seq = self.seq
+        if (mode_id.f_mode > 0.0 and mode_id.f_mode * self.T <= F_MODE_MAX_T
+                and seq.pulse_left == 0 and seq.mode != Mode.COARSE):
+            self._use_mode(mode_id.f_mode, float(self.settings.c_t_est))
+            self.motor.u_prev = self.u_last
+            # the ringing seen was this mode, which the motor loop now relaxes before every
+            # pulse: the rest's dwell and the trust of a rigid table again
+            self.rest.ring_dwell = 0
+            self.rest.update_test()
+            # the probe still rings the drive: the maneuver's first pulse waits for it too
+            self.relaxed = 0
+            self.wait_relaxed = True
+            self.trust.ring = False
+            self.trust.value = max(self.trust.value, self.trust0(self.settings))
+
+    def _probe(self, x_meas: float, x_ref: float) -> float:
+        """The probe of the identification: one sample of ``PROBE_SHARE*f_c_est`` on the
+        motor toward the target (the spring's first peak, at most twice that, stays below
+        the friction that holds the table), then no force while the drive rings, for at
+        most ``PROBE_WAIT_S``; N."""
+        if self.probe_k < 0:
+            self.probe_k = 0
+            u = math.copysign(PROBE_SHARE * float(self.settings.f_c_est), x_ref - x_meas)
+        else:
+            self.probe_k += 1
+            u = 0.0
+        self.u_last = u
+        return u
 
     def _reset_drive(self) -> None:
         if self.motor is not None:
@@ -242,9 +312,14 @@ class DualLoopController(ExactController):
         """Force u (N) over the next sample, from the table's reading x_meas (m), the
         motor's :attr:`x_d_meas` (m) and the reference x_ref (m)."""
         seq = self.seq
+        if self.motor is None and self.mode_id is not None:
+            self._identify(self.x_d_meas, x_meas)
+            if self.motor is None and self.probe_k < self.probe_max:
+                return self._probe(x_meas, x_ref)
         motor = self.motor
         if motor is None:
-            return seq.update(x_meas, x_ref)
+            self.u_last = seq.update(x_meas, x_ref)
+            return self.u_last
         x_d = self.x_d_meas
         x_prev, self.x_last = self.x_last, x_meas
         if seq.stopped or self.drive_stop:
@@ -272,8 +347,9 @@ class DualLoopController(ExactController):
             # no force until the spring's first peak, and then while the table moves
             self.free = max(self.free - 1, 0)
             u = 0.0
-        elif self.relaxed >= RELAX_SAMPLES or seq.first:
+        elif self.relaxed >= RELAX_SAMPLES or (seq.first and not self.wait_relaxed):
             self.free = -1
+            self.wait_relaxed = False
             self.unrelaxed = 0
             u = seq.update(x_meas, x_ref)
             if seq.idle_samples:
@@ -318,14 +394,33 @@ class DualLoopController(ExactController):
         out["x_last"] = self.x_last
         out["fired"] = [int(self.fired), self.x_d_fired]
         out["x_d_meas"] = self.x_d_meas
+        out["mode_id"] = self.mode_id.state() if self.mode_id is not None else []
+        out["u_last"] = self.u_last
+        out["probe_k"] = self.probe_k
+        out["wait_relaxed"] = int(self.wait_relaxed)
         return out
 
     def set_law_state(self, values: Mapping[str, Any]) -> None:
         super().set_law_state(values)
+        mode_id = self.mode_id
+        if mode_id is not None:
+            mode_id.set_state(list(values["mode_id"]))
+            self.motor = None
+            if list(values["motor"]):
+                if not mode_id.f_mode > 0.0:
+                    raise ValueError("law.motor holds numbers, but f_mode = 0 and no mode "
+                                     "was identified (no motor loop)")
+                self._use_mode(mode_id.f_mode,
+                               float(self.settings.c_t_est))
+        elif list(values["mode_id"]):
+            raise ValueError("law.mode_id holds numbers, but f_mode is given")
         if self.motor is not None:
             self.motor.set_state(list(values["motor"]))
         elif list(values["motor"]):
-            raise ValueError("law.motor holds numbers, but f_mode = 0 (no motor loop)")
+            raise ValueError("law.motor holds numbers, but there is no motor loop")
+        self.u_last = float(values["u_last"])
+        self.probe_k = int(values["probe_k"])
+        self.wait_relaxed = bool(values["wait_relaxed"])
         relax = [int(v) for v in values["relax"]]
         if len(relax) != 4:
             raise ValueError(f"law.relax holds {len(relax)} numbers, not 4")

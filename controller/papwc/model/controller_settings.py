@@ -169,6 +169,14 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "counts as relaxed (a pulse starts, a move is read, the maneuver settles only "
              "from a relaxed drive)", "N", 2.0, min=0.0, min_open=True, max=1e9,
              nominal=1.0, kinds=("dual_loop",)),
+    Variable("identify_mode", "With f_mode = 0: identify the drive's mode from the motor "
+             "encoder's free ringing (x_d_meas - x_meas while the table sticks) after a probe "
+             "(one sample of 0.4*f_c_est on the motor at the first sample, which friction "
+             "holds the table against) and build the motor loop on it, with m_d_est and "
+             "c_t_est; the table's encoder alone until then, and for good if no ringing "
+             "within 0.5 s or a mode above 0.25/T. False: f_mode = 0 means no motor loop",
+             "", False,
+             type="Boolean", kinds=("dual_loop",)),
 )
 
 def _below_f_p_max(name: str, strict: bool):
