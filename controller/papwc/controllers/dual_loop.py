@@ -263,6 +263,7 @@ class DualLoopController(ExactController):
                 and seq.pulse_left == 0 and seq.mode != Mode.COARSE):
             self._use_mode(mode_id.f_mode, float(self.settings.c_t_est))
             self.motor.u_prev = self.u_last
+            self.x_last = x_meas
             # the ringing seen was this mode, which the motor loop now relaxes before every
             # pulse: the rest's dwell and the trust of a rigid table again
             self.rest.ring_dwell = 0
@@ -410,8 +411,7 @@ class DualLoopController(ExactController):
                 if not mode_id.f_mode > 0.0:
                     raise ValueError("law.motor holds numbers, but f_mode = 0 and no mode "
                                      "was identified (no motor loop)")
-                self._use_mode(mode_id.f_mode,
-                               float(self.settings.c_t_est))
+                self._use_mode(mode_id.f_mode, float(self.settings.c_t_est))
         elif list(values["mode_id"]):
             raise ValueError("law.mode_id holds numbers, but f_mode is given")
         if self.motor is not None:
