@@ -65,8 +65,8 @@ class ModeIdentifier:
         Fits in a row that agreed with the one before.
     f_last : float
         Frequency of the last fit, Hz (0: none).
-    f_mode, c_over_m : float
-        The accepted mode, Hz, and ``2*sigma = c_t/m_d``, 1/s (0: not yet).
+    f_mode : float
+        The accepted mode's frequency, Hz (0: not yet).
     """
 
     def __init__(self, T: float, resolution: float = 0.0) -> None:
@@ -80,7 +80,6 @@ class ModeIdentifier:
         self.matches = 0
         self.f_last = 0.0
         self.f_mode = 0.0
-        self.c_over_m = 0.0
 
     def observe(self, delta: float, x: float, force: float, band: float) -> None:
         """The readings of a sample: deflection delta and table x (m), after the force
@@ -117,9 +116,9 @@ class ModeIdentifier:
             self._judge()
         self.recent = [*recent[-1:], delta]
 
-    def fit(self) -> tuple[float, float] | None:
-        """``(f, c_over_m)`` of the least-squares fit (Hz, 1/s), or None (too few triples,
-        too little ringing, poles not complex or not inside the unit circle)."""
+    def fit(self) -> float | None:
+        """Frequency of the least-squares fit, Hz, or None (too few triples, too little
+        ringing, poles not complex or not inside the unit circle)."""
         s11, s12, s22, sy1, sy2, syy = self.sums
         if self.triples < MIN_TRIPLES:
             return None
@@ -130,21 +129,21 @@ class ModeIdentifier:
             return None
         a_1 = (sy1 * s22 - sy2 * s12) / det
         a_2 = (s11 * sy2 - s12 * sy1) / det
-        return mode_of(a_1, a_2, self.T)
+        found = mode_of(a_1, a_2, self.T)
+        return found[0] if found is not None else None
 
     def _judge(self) -> None:
-        found = self.fit()
-        if found is None:
+        f = self.fit()
+        if f is None:
             self.matches, self.f_last = 0, 0.0
             return
-        f, c_over_m = found
         if self.f_last > 0.0 and abs(f - self.f_last) <= AGREE * self.f_last:
             self.matches += 1
         else:
             self.matches = 0
         self.f_last = f
         if self.matches >= MATCHES:
-            self.f_mode, self.c_over_m = f, c_over_m
+            self.f_mode = f
 
     def state(self) -> list[float]:
         """Everything that evolves, as numbers: sums, triples, the run (count and up to two
@@ -152,20 +151,20 @@ class ModeIdentifier:
         began."""
         run = [float(len(self.recent)), *self.recent, *[0.0] * (2 - len(self.recent))]
         return [*self.sums, float(self.triples), *run, float(self.matches), self.f_last,
-                self.f_mode, self.c_over_m, float(self.quiet), self.x_run]
+                self.f_mode, float(self.quiet), self.x_run]
 
     def set_state(self, values: Sequence[float]) -> None:
         """Restore :meth:`state`."""
-        if len(values) != 16:
-            raise ValueError(f"law.mode_id holds {len(values)} numbers, not 16")
+        if len(values) != 15:
+            raise ValueError(f"law.mode_id holds {len(values)} numbers, not 15")
         v = [float(x) for x in values]
         self.sums = v[:6]
         self.triples = int(v[6])
         n = min(max(int(v[7]), 0), 2)
         self.recent = v[8:8 + n]
         self.matches = int(v[10])
-        self.f_last, self.f_mode, self.c_over_m = v[11], v[12], v[13]
-        self.quiet, self.x_run = int(v[14]), v[15]
+        self.f_last, self.f_mode = v[11], v[12]
+        self.quiet, self.x_run = int(v[13]), v[14]
 
 
 def mode_of(a_1: float, a_2: float, T: float) -> tuple[float, float] | None:
