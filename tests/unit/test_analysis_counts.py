@@ -8,12 +8,13 @@ import sys
 
 import pytest
 
-from papwc.studies import drive_state, scatter
+from papwc.studies import drive_state, flexible_scatter, scatter
 from papwc.studies.counts import parse_count
 
 
 @pytest.mark.parametrize("main, option, high", [
     (scatter.main, "--repeats", scatter.REPEATS_MAX),
+    (flexible_scatter.main, "--repeats", flexible_scatter.REPEATS_MAX),
     (drive_state.main, "--moves", drive_state.MOVES_MAX),
 ])
 @pytest.mark.parametrize("value, said", [("0", "0 is outside 1..{high}"),

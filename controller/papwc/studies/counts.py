@@ -1,13 +1,15 @@
-"""The command line of an analysis that takes one count (``python -m papwc.studies.X``)."""
+"""The command line of an analysis that takes one count (``python -m papwc.studies.X``), and
+the line its repeated pulses are reported in."""
 
 from __future__ import annotations
 
 import argparse
+import statistics
 from collections.abc import Sequence
 
 from papwc.limits import whole_number
 
-__all__ = ["parse_count"]
+__all__ = ["moves_line", "parse_count"]
 
 
 def parse_count(argv: Sequence[str] | None, prog: str, description: str, option: str,
@@ -21,3 +23,10 @@ def parse_count(argv: Sequence[str] | None, prog: str, description: str, option:
     parser.add_argument(option, type=whole_number(1, high), default=default, dest="count",
                         help=f"{what} (1 to {high}, default {default})")
     return parser.parse_args(argv).count
+
+
+def moves_line(moved: Sequence[float], repeats: int) -> str:
+    """``moved n of repeats; smallest / median / largest um (...)`` of the moves that moved
+    (um, not empty)."""
+    return (f"moved {len(moved)} of {repeats}; {min(moved):.2f} / "
+            f"{statistics.median(moved):.2f} / {max(moved):.2f} um (smallest / median / largest)")

@@ -23,7 +23,7 @@ from collections.abc import Sequence
 
 from papwc.model.dynamics import Plant
 from papwc.resources import scenario_file
-from papwc.studies.counts import parse_count
+from papwc.studies.counts import moves_line, parse_count
 
 __all__ = ["CASES", "HEIGHTS", "main", "repeated_pulse", "table"]
 
@@ -91,8 +91,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             med = statistics.median(moved)
             top = max(moved)
             beyond = sum(d > 1.5 * med for d in moved)
-            print(f"  {f_p:5.1f} N: moved {len(moved)} of {repeats}; "
-                  f"{min(moved):.2f} / {med:.2f} / {top:.2f} um (smallest / median / largest), "
+            print(f"  {f_p:5.1f} N: {moves_line(moved, repeats)}, "
                   f"largest/median {top / med:.2f}, beyond 1.5*median {beyond} "
                   f"({100.0 * beyond / len(moved):.0f} %); safe plan {1.5 * med / top:.2f}*|e|")
 
