@@ -200,3 +200,19 @@ def test_no_pulse_history_makes_the_exact_controller_plan_beyond_its_trust_regio
         assert math.isfinite(pred)
         assert (pred <= ctl.trust() * abs(e) * (1 + 1e-9)
                 or (n == 1 and abs(f_p) <= ctl.f_low * (1 + 1e-12)))
+
+
+def test_the_farthest_move_is_that_of_the_moves_the_curves_are_fitted_to():
+    """realism_mc_lugre_ideal_10s.toml, run rigid-s0-d002: moves of 25-32 um from the first
+    maneuver were still remembered when the newest FIT_MOVES were creeps of at most 2 um; the
+    reach of the curve (twice the farthest) then took in a goal of 9 um, and the creeps'
+    flat curve planned 287 N for it, which moved 72 um. The farthest move is now that of the
+    moves the curves are fitted to."""
+    ev = BreakawayEvidence(80.0, 150.0, T)
+    ev.observe(239.1, 2.85e-5, True)
+    ev.observe(233.6, 2.48e-5, True)
+    assert ev.farthest() == 2.85e-5
+    for k in range(FIT_MOVES):
+        ev.observe(130.0 + k, 5e-7 + 1e-7 * k, True)
+    assert len(ev.moves) == FIT_MOVES + 2
+    assert ev.farthest() == pytest.approx(5e-7 + 1e-7 * (FIT_MOVES - 1))

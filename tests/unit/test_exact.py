@@ -24,6 +24,7 @@ from papwc.controllers.exact import ExactController, PulseModelEstimator
 from papwc.controllers.settings import SETTINGS_BY_NAME, ControllerSettings, settings_for_kind
 from papwc.master import Maneuver, PhysicsSlave, run_controller, run_iteration
 from papwc.model.controller_settings import CONTROLLER_SETTINGS
+from papwc.model.pulse import pulse_displacement
 from papwc.results.summary import summarize
 from papwc.scenario import load_scenario
 
@@ -440,3 +441,39 @@ def test_a_pulse_on_the_evidence_that_crept_is_evidence_not_the_end():
     assert ctl.f_lb == f_p and ctl.implied == []
     ctl.seq.pulses = 1
     assert ctl.plan_pulse(1e-6)[1] > f_p
+
+
+def _two_pulses_of_one_width(moves: tuple[float, float]) -> ExactController:
+    """A controller that made two 2-sample pulses (217.77 and 239.55 N) that moved
+    ``moves`` (m), then trusted fully with a small prediction error."""
+    ctl = make_controller(_settings(x_resolution=1e-7), T)
+    for f, d in zip((217.77, 239.55), moves, strict=True):
+        ctl.learn(2, f, d)
+    ctl.trust.value = 1.0
+    ctl.errors = [0.17, 0.17]
+    return ctl
+
+
+def test_a_fit_unlike_eq3_on_one_width_widens_one_step_at_the_heights_tried():
+    """big Monte Carlo draw rigid-s3-d013 (a 4.8 ms lag, Stribeck): two 2-sample pulses moved
+    172 and 194 um; the fit explains them with f_c = 41 N and c = 17,600 N.s/m, and planned 5
+    samples at 258 N for 634 um, which moved 2.18 mm (2.3 times the runaway bound). Far from
+    the settings' estimates on pulses of one width, the next pulse is one sample wider and no
+    higher than the highest of that width."""
+    ctl = _two_pulses_of_one_width((1.72e-4, 1.94e-4))
+    assert ctl._unlike_eq3() and ctl.estimator.prior_distance() > 10.0
+    n, f_p = ctl.plan_pulse(6.34e-4)
+    assert n == 3 and 0.0 < f_p <= 239.55
+    # a third width made: the fit knows how the move grows with the width
+    ctl.learn(3, 239.55, 4.4e-4)
+    assert not ctl._unlike_eq3()
+
+
+def test_a_fit_near_the_estimates_plans_as_wide_as_the_model_says():
+    plant = {"m": 140.0, "f_c": 95.0, "c": 600.0}
+    moves = tuple(pulse_displacement(f, 2 * T, plant["m"], plant["f_c"], plant["c"])
+                  for f in (217.77, 239.55))
+    ctl = _two_pulses_of_one_width(moves)
+    assert not ctl._unlike_eq3() and ctl.estimator.prior_distance() < 1.0
+    n, f_p = ctl.plan_pulse(5e-3)
+    assert n == 3 and f_p > 239.55  # the width the model's exploration allows, higher

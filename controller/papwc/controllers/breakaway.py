@@ -175,8 +175,9 @@ class BreakawayEvidence:
         return eps
 
     def farthest(self) -> float:
-        """Farthest move remembered, m (0: none)."""
-        return max((d for _, _, _, d in self.moves), default=0.0)
+        """Farthest of the moves the curves are fitted to (the ``FIT_MOVES`` newest), m (0:
+        none): beyond it a curve extrapolates."""
+        return max((d for _, _, _, d in self.moves[-FIT_MOVES:]), default=0.0)
 
     def observe(self, f: float, d: float, moved: bool, low: float = 0.0) -> None:
         """Take a one-sample pulse of height f (N) that moved the table d (m, along f):

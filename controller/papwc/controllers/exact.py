@@ -129,6 +129,14 @@ _BOOST_MAX = 4.0
 _UNSURE = 2.0
 #: Relative error expected of a move planned on the evidence of the breakaway.
 _EV_PRECISION = 0.5
+#: A pulse wider than the widest in the history is at most this many times as wide (and at
+#: most one sample wider for narrow ones): at one height its move grows about as the width
+#: squared, so at most 2.25 times the widest one's.
+_WIDER = 1.5
+#: A fit on sliding pulses of one width that lies more than this many prior standard
+#: deviations from the settings' estimates is taken as a plant unlike Eq. (3)
+#: (``_unlike_eq3``).
+_IMPLAUSIBLE = 2.0
 #: Largest pulse width searched, samples.
 _N_SEARCH_MAX = 1 << 20
 
@@ -467,7 +475,28 @@ class ExactController(PulseControllerBase):
             if max(est.rel_misfit, self.errors[-1]) > _EXACT_ENOUGH:
                 goal *= _NEW_WIDTH
             n, f_p = self.plan_displacement(goal, f_lo)
+            if n > est.widest and self._unlike_eq3():
+                # a fit to sliding pulses of one width cannot tell how the move grows with
+                # the width (a lag, Stribeck make it grow faster than Eq. (3)): at most
+                # _WIDER times as wide (one sample wider) as the widest made, no higher than
+                # the highest of that width, as high as the model says for the goal below that
+                n = min(n, max(est.widest + 1, int(_WIDER * est.widest)))
+                f_top = max((abs(f) for n_i, f, _ in est.pulses if n_i == est.widest),
+                            default=self.settings.f_p_max)
+                f_p = (f_top if self.displacement(n, f_top) < goal
+                       else self._amplitude(goal, n, min(f_lo, f_top), f_top))
         return n, f_p, goal
+
+    def _unlike_eq3(self) -> bool:
+        """Whether the fit rests on sliding pulses of one width and lies more than
+        ``_IMPLAUSIBLE`` prior standard deviations from the settings' estimates: a plant
+        unlike Eq. (3) (a lag, Stribeck) fitted by a mass, friction and viscous damping it
+        does not have (measured: c 4,000-18,000 N.s/m, f_c 14-49 N for a table of 700 and
+        100), whose moves at other widths it does not know."""
+        est = self.estimator
+        if len({n_i for n_i, _, _ in est.pulses if n_i > 1}) >= 2:
+            return False
+        return est.prior_distance() > _IMPLAUSIBLE
 
     def _evidence_height(self, goal: float, f_model: float) -> float:
         """Height (N) of one sample that moves the table at most ``goal`` (m), planned for

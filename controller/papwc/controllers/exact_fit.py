@@ -121,6 +121,12 @@ class PulseModelEstimator:
         lo, hi = _THETA_BOUNDS[j]
         return min(max(value, lo), hi)
 
+    def prior_distance(self) -> float:
+        """How far the estimate lies from the settings' estimates, in prior standard
+        deviations (the largest over log(m), log(f_c) and c/c_scale)."""
+        return max(abs(th - th0) / sigma
+                   for th, th0, sigma in zip(self.theta, self.theta0, _SIGMA_PRIOR, strict=True))
+
     def params(self, theta: list[float] | tuple[float, ...] | None = None) -> tuple[float, ...]:
         """``(m, f_c, c)`` in kg, N, N.s/m for ``theta`` (default: the current estimate)."""
         th = self.theta if theta is None else theta
