@@ -30,6 +30,11 @@ less than one sample at the stiction force, Eq. (20). This controller
   pulse in the history moved, and, while the model's misfit or its last
   prediction's error is above ``_EXACT_ENOUGH`` (20 %), with ``_NEW_WIDTH`` (2/3)
   of the trust;
+* while its fit rests on sliding pulses of one width and lies more than ``_IMPLAUSIBLE``
+  (2) prior standard deviations from the settings' estimates (a lag or Stribeck fitted by
+  a mass, friction and damping the table does not have), plans a pulse wider than any made
+  at most ``_WIDER`` (1.5) times as wide (one sample wider for narrow ones) and no higher
+  than the highest of that width;
 * after a pulse its model missed by more than 50 %, plans no pulse wider than
   the widest it has made nor more than 10 % higher than the highest of at least
   that width (a model refitted to one or two pulses of a plant unlike Eq. (3)
