@@ -235,6 +235,37 @@ def test_creep_prediction_follows_the_creeps_within_eq4():
     assert creep_prediction(196.0, 1e-5, two) == pytest.approx(grown)  # above FAR_LESS*1e-5
 
 
+def test_creep_prediction_without_growth_reads_the_creeps_at_least_as_high():
+    """realism_mc_fresh.toml, run rigid-s5-d006: PAPWC's creeps at 205.33 N and 215.59 N moved
+    25.2 and 17.8 um (the breakaway drawn anew scatters them: no growth with the height to go
+    by). A pulse no higher than a creep moves as far as the farthest creep at least as high,
+    at least FAR_LESS of Eq. (4) and at most all of it; above them, Eq. (4)."""
+    creeps = (205.33, 2.52e-5, 215.59, 1.78e-5)
+    assert creep_prediction(215.59, 1.22e-4, creeps) == pytest.approx(FAR_LESS * 1.22e-4)
+    assert creep_prediction(205.33, 6e-5, creeps) == 2.52e-5  # the farther of the two
+    assert creep_prediction(205.33, 2e-5, creeps) == 2e-5  # never more than Eq. (4)
+    assert creep_prediction(226.37, 1.38e-4, creeps) == 1.38e-4  # above both
+
+
+def test_papwc_fires_at_a_creeps_height_where_its_floor_may_end_farther():
+    """The same run: after those creeps the floor stood at 226.37 N, where Eq. (4) says
+    138 um, and the third 50 um maneuver stopped before its first pulse (measured before).
+    A creep's own height, which the creeps say moves at most 30 um, is fired instead; the
+    floor stays."""
+    ctl = PapwcController(ControllerSettings(kind="papwc", m_est=150.0, f_c_est=80.0), T)
+    ctl.learn(1, 205.33, 2.52e-5)
+    ctl.learn(1, 215.59, 1.78e-5)
+    assert ctl.creeps == (205.33, 2.52e-5, 215.59, 1.78e-5)
+    assert ctl.f_p_floor == pytest.approx(215.59 * 1.05)
+    ctl.seq.e0 = 5e-5
+    floor = ctl.f_p_floor
+    assert ctl.seq.may_end_farther(5e-5, floor, ctl.reach(1, floor))
+    n, f = ctl.plan_pulse(5e-5)
+    assert (n, f) == (1, 215.59)
+    assert not ctl.seq.may_end_farther(5e-5, f, ctl.reach(n, f))
+    assert ctl.f_p_floor == floor
+
+
 def test_papwc_reaches_on_its_creeps_and_forgets_them_when_eq4_holds():
     """One-sample pulses that moved less than Eq. (4) are kept (the last two), and a pulse at
     the floor is expected to move on their evidence (``reach``) while the trust region

@@ -36,7 +36,9 @@ def creep_prediction(f_p: float, eq4: float, creeps: tuple[float, float, float, 
       that grows as a power of the excess over the breakaway, an overestimate);
 
     at least ``FAR_LESS`` times Eq. (4) (the least move Eq. (4) learns from) and never
-    more than Eq. (4). Without two such creeps, Eq. (4).
+    more than Eq. (4). Where they did not grow (the breakaway drawn anew at every stop
+    scatters them), a pulse no higher than a creep is predicted to move as far as the
+    farthest creep at least as high, within the same limits. Else Eq. (4).
 
     Parameters
     ----------
@@ -55,7 +57,10 @@ def creep_prediction(f_p: float, eq4: float, creeps: tuple[float, float, float, 
     """
     f_0, d_0, f_1, d_1 = creeps
     if not (f_1 > f_0 > 0.0 and d_1 > d_0 > 0.0):
-        return eq4
+        # no growth with the height to go by: a pulse no higher than a creep moves as far
+        # as the farthest of those at least as high
+        above = [d for f, d in ((f_0, d_0), (f_1, d_1)) if f > 0.0 and f >= f_p]
+        return min(eq4, max(FAR_LESS * eq4, max(above))) if above else eq4
     grown = d_1 if f_p <= f_1 else d_1 * (d_1 / d_0) ** ((f_p - f_1) / (f_1 - f_0))
     return min(eq4, max(FAR_LESS * eq4, grown))
 
@@ -167,8 +172,17 @@ class PapwcController(PulseControllerBase):
             f_p = f_max if t_p >= T_x else papwc_amplitude(f_c, f_max, t_p, T_x)
             f_p = min(max(f_p, self.f_p_floor), f_max)
             if not (self.guarded and n > 1 and self.predict(n, f_p) > self.trust() * abs(e)):
-                return n, math.copysign(f_p, e)
+                break
             n -= 1
+        if (self.guarded and n == 1 and not self.seq.flexible()
+                and self.seq.may_end_farther(e, f_p, self.reach(1, f_p))):
+            # the floor may end farther; a creep's own height that cannot, by the creeps'
+            # evidence, is fired instead (the floor stays)
+            for f in sorted((f for f in (self.creeps[0], self.creeps[2]) if 0.0 < f < f_p),
+                            reverse=True):
+                if not self.seq.may_end_farther(e, f, self.reach(1, f)):
+                    return 1, math.copysign(f, e)
+        return n, math.copysign(f_p, e)
 
     def reach(self, n: int, f_p: float) -> float:
         """Eq. (4) (:meth:`predict`); for a one-sample pulse at the floor after one-sample
@@ -225,7 +239,13 @@ class PapwcController(PulseControllerBase):
         that did not move visibly (the creeps no longer tell what the next pulse does: a
         table held back by a compliant drive reads noise while the drive winds up)."""
         if Z_DECIDE * self.rest.sigma_move() < d_along < self.predict(1, f_p):
-            self.creeps = (*self.creeps[2:], abs(f_p), d_along)
+            f_0, d_0, f_1, d_1 = self.creeps
+            if abs(f_p) == f_1:
+                # the same height again: the farther of its moves (the breakaway drawn anew
+                # scatters them), the creep below kept for the growth with the height
+                self.creeps = (f_0, d_0, f_1, max(d_1, d_along))
+            else:
+                self.creeps = (f_1, d_1, abs(f_p), d_along)
         else:
             self.creeps = (0.0, 0.0, 0.0, 0.0)
 
