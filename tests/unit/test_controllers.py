@@ -245,6 +245,11 @@ def test_creep_prediction_without_growth_reads_the_creeps_at_least_as_high():
     assert creep_prediction(205.33, 6e-5, creeps) == 2.52e-5  # the farther of the two
     assert creep_prediction(205.33, 2e-5, creeps) == 2e-5  # never more than Eq. (4)
     assert creep_prediction(226.37, 1.38e-4, creeps) == 1.38e-4  # above both
+    # realism_mc_unknown.toml, a 20 Hz drive not told (run flexible_20hz_unknown-s4-d003):
+    # 2.67 um at 143.3 N, then 0.28 um at 150.46 N -- the table read noise while the drive
+    # wound up, and a pulse at 150.46 N then moved 167 um: creeps this far apart are no
+    # evidence
+    assert creep_prediction(150.46, 4.4e-5, (143.3, 2.67e-6, 150.46, 2.83e-7)) == 4.4e-5
 
 
 def test_papwc_fires_at_a_creeps_height_where_its_floor_may_end_farther():
@@ -264,6 +269,24 @@ def test_papwc_fires_at_a_creeps_height_where_its_floor_may_end_farther():
     assert (n, f) == (1, 215.59)
     assert not ctl.seq.may_end_farther(5e-5, f, ctl.reach(n, f))
     assert ctl.f_p_floor == floor
+    ctl.seq.e0 = -5e-5  # the same the other way
+    assert ctl.plan_pulse(-5e-5) == (1, -215.59)
+
+
+def test_papwc_does_not_fire_below_its_floor_on_creeps_far_apart():
+    """realism_mc_unknown.toml, run flexible_20hz_unknown-s4-d003 (a 20 Hz drive not told):
+    creeps of 2.67 and 0.28 um while the drive wound up. Eq. (4) alone says a pulse at the
+    second one's height ends no farther, but it moved 167 um there (measured with a version
+    that fired it): below the floor only on the creeps' evidence, which these are not."""
+    ctl = PapwcController(ControllerSettings(kind="papwc", m_est=150.0, f_c_est=80.0), T)
+    ctl.learn(1, 143.3, 2.67e-6)
+    ctl.learn(1, 150.46, 2.83e-7)
+    ctl.trust.value = 0.45
+    ctl.seq.e0 = -5.24e-5
+    floor = ctl.f_p_floor
+    assert floor == pytest.approx(150.46 * 1.05)
+    assert not ctl.seq.may_end_farther(-4.94e-5, -150.46, ctl.predict(1, 150.46))
+    assert ctl.plan_pulse(-4.94e-5) == (1, -floor)
 
 
 def test_papwc_reaches_on_its_creeps_and_forgets_them_when_eq4_holds():

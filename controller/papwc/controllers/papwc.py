@@ -36,9 +36,11 @@ def creep_prediction(f_p: float, eq4: float, creeps: tuple[float, float, float, 
       that grows as a power of the excess over the breakaway, an overestimate);
 
     at least ``FAR_LESS`` times Eq. (4) (the least move Eq. (4) learns from) and never
-    more than Eq. (4). Where they did not grow (the breakaway drawn anew at every stop
-    scatters them), a pulse no higher than a creep is predicted to move as far as the
-    farthest creep at least as high, within the same limits. Else Eq. (4).
+    more than Eq. (4). Where they did not grow but moved alike (within a factor
+    1/``FAR_LESS``: the breakaway drawn anew at every stop scatters them), a pulse no
+    higher than a creep is predicted to move as far as the farthest creep at least as high,
+    within the same limits. Else Eq. (4) (creeps far apart in size are a table that reads
+    noise while a compliant drive winds up).
 
     Parameters
     ----------
@@ -57,9 +59,13 @@ def creep_prediction(f_p: float, eq4: float, creeps: tuple[float, float, float, 
     """
     f_0, d_0, f_1, d_1 = creeps
     if not (f_1 > f_0 > 0.0 and d_1 > d_0 > 0.0):
-        # no growth with the height to go by: a pulse no higher than a creep moves as far
-        # as the farthest of those at least as high
-        above = [d for f, d in ((f_0, d_0), (f_1, d_1)) if f > 0.0 and f >= f_p]
+        # no growth with the height to go by: where the two moved alike (within a factor
+        # 1/FAR_LESS: the scatter of a breakaway drawn anew, not a table that reads noise
+        # while a compliant drive winds up), a pulse no higher than a creep moves as far as
+        # the farthest of those at least as high
+        if not (f_0 > 0.0 and min(d_0, d_1) >= FAR_LESS * max(d_0, d_1) > 0.0):
+            return eq4
+        above = [d for f, d in ((f_0, d_0), (f_1, d_1)) if f >= f_p]
         return min(eq4, max(FAR_LESS * eq4, max(above))) if above else eq4
     grown = d_1 if f_p <= f_1 else d_1 * (d_1 / d_0) ** ((f_p - f_1) / (f_1 - f_0))
     return min(eq4, max(FAR_LESS * eq4, grown))
@@ -174,15 +180,18 @@ class PapwcController(PulseControllerBase):
             if not (self.guarded and n > 1 and self.predict(n, f_p) > self.trust() * abs(e)):
                 break
             n -= 1
+        f_p = math.copysign(f_p, e)
         if (self.guarded and n == 1 and not self.seq.flexible()
                 and self.seq.may_end_farther(e, f_p, self.reach(1, f_p))):
             # the floor may end farther; a creep's own height that cannot, by the creeps'
-            # evidence, is fired instead (the floor stays)
-            for f in sorted((f for f in (self.creeps[0], self.creeps[2]) if 0.0 < f < f_p),
+            # evidence (not by Eq. (4) alone), is fired instead (the floor stays)
+            for f in sorted((f for f in (self.creeps[0], self.creeps[2]) if 0.0 < f < abs(f_p)),
                             reverse=True):
-                if not self.seq.may_end_farther(e, f, self.reach(1, f)):
-                    return 1, math.copysign(f, e)
-        return n, math.copysign(f_p, e)
+                f = math.copysign(f, e)
+                reach = self.reach(1, f)
+                if reach < self.predict(1, f) and not self.seq.may_end_farther(e, f, reach):
+                    return 1, f
+        return n, f_p
 
     def reach(self, n: int, f_p: float) -> float:
         """Eq. (4) (:meth:`predict`); for a one-sample pulse at the floor after one-sample
