@@ -157,7 +157,9 @@ class PapwcController(PulseControllerBase):
         With safeguards, K_c is at most the trust region (a pulse is planned to
         move at most ``trust*|e|`` by Eq. (4)), and a width whose height the
         floor lifts so that Eq. (4) predicts more than that is cut by whole
-        samples.
+        samples. A one-sample pulse at the floor that may end farther than the
+        maneuver started gives way to the highest height of the creeps kept that,
+        on their evidence (:meth:`reach` below Eq. (4)), may not; the floor stays.
         """
         f_max = self.settings.f_p_max
         f_c = self.f_c_hat
