@@ -9,7 +9,12 @@ from collections.abc import Sequence
 
 from papwc.limits import whole_number
 
-__all__ = ["moves_line", "parse_count"]
+__all__ = ["MOVED", "REPEATS_MAX", "moves_line", "parse_count"]
+
+#: Largest number of repetitions of a pulse a study takes.
+REPEATS_MAX = 100_000
+#: Displacements at or below this are "did not move", m.
+MOVED = 5e-8
 
 
 def parse_count(argv: Sequence[str] | None, prog: str, description: str, option: str,

@@ -30,7 +30,7 @@ from collections.abc import Sequence
 
 from papwc.model.dynamics import Plant
 from papwc.resources import scenario_file
-from papwc.studies.counts import moves_line, parse_count
+from papwc.studies.counts import MOVED, REPEATS_MAX, moves_line, parse_count
 
 __all__ = ["DRIVES", "SPREADS", "drive", "main", "relaxed_pulse"]
 
@@ -46,15 +46,12 @@ SPREADS = (0.01, 0.05, 0.15)
 ABOVE = (1.0, 5.0, 15.0)
 #: Seed of the random stiction.
 SEED = 1
-#: Default and largest number of repetitions of a pulse.
+#: Default number of repetitions of a pulse (at most ``REPEATS_MAX``).
 REPEATS = 200
-REPEATS_MAX = 100_000
 #: Longest wait for the table to stick after a pulse, s.
 WAIT_MAX = 2.0
 #: A move within this of the median lands on the plan, m.
 LANDS = 1e-6
-#: Displacements at or below this are "did not move", m.
-MOVED = 5e-8
 
 
 def drive(case: str) -> tuple[dict[str, float], float]:

@@ -23,7 +23,7 @@ from collections.abc import Sequence
 
 from papwc.model.dynamics import Plant
 from papwc.resources import scenario_file
-from papwc.studies.counts import moves_line, parse_count
+from papwc.studies.counts import MOVED, REPEATS_MAX, moves_line, parse_count
 
 __all__ = ["CASES", "HEIGHTS", "main", "repeated_pulse", "table"]
 
@@ -38,11 +38,8 @@ HEIGHTS = (150.0, 160.0, 180.0)
 REST = 0.6
 #: Seed of the random stiction.
 SEED = 1
-#: Default and largest number of repetitions of a pulse.
+#: Default number of repetitions of a pulse (at most ``REPEATS_MAX``).
 REPEATS = 300
-REPEATS_MAX = 100_000
-#: Displacements at or below this are "did not move", m.
-MOVED = 5e-8
 
 
 def table() -> tuple[dict[str, float], float]:
