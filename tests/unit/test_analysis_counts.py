@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from papwc.studies import drive_state, flexible_scatter, scatter
+from papwc.studies import ceiling, drive_state, flexible_scatter, scatter
 from papwc.studies.counts import parse_count
 
 
@@ -16,6 +16,7 @@ from papwc.studies.counts import parse_count
     (scatter.main, "--repeats", scatter.REPEATS_MAX),
     (flexible_scatter.main, "--repeats", flexible_scatter.REPEATS_MAX),
     (drive_state.main, "--moves", drive_state.MOVES_MAX),
+    (ceiling.main, "--tables", ceiling.TABLES_MAX),
 ])
 @pytest.mark.parametrize("value, said", [("0", "0 is outside 1..{high}"),
                                          ("2.5", "'2.5' is not a whole number"),

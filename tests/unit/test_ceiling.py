@@ -1,0 +1,95 @@
+"""The study of what planning for the lowest breakaway reaches when the table is known."""
+
+from __future__ import annotations
+
+import pytest
+
+from papwc.studies import ceiling
+
+#: Table 1 with random stiction only: the closed form, quick to step.
+STICTION = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0, "f_s_spread": 0.15,
+            "seed": 3}
+#: With a lag of 4 ms as well (integrated).
+LAG = {**STICTION, "tau_u": 4e-3}
+
+
+def test_known_table_is_reached_and_no_pulse_moves_beyond_the_error():
+    done = ceiling.Approach(STICTION).run()
+    assert done.error <= 1e-6
+    assert done.pulses == len(done.record) >= 1
+    assert ceiling.beyond(done.record, True)[1] == 0
+    # planned for the lowest breakaway still possible, a pulse moves at most |e|
+    for e, d in done.record:
+        assert d * e >= 0.0
+        assert abs(d) <= abs(e) * (1.0 + 1e-9)
+
+
+def test_the_proof_is_the_least_breakaway_at_which_the_height_does_not_move():
+    approach = ceiling.Approach(STICTION)
+    state = approach.table.state()
+    low = approach.lowest
+    b = approach.proof(state, 140.0, low)
+    assert low < b <= 140.0 + (approach.highest - low) / 2**ceiling.STEPS
+    assert approach.move(state, b, 140.0) == 0.0
+    assert approach.move(state, b - 0.01, 140.0) > 0.0
+
+
+def test_a_model_without_the_lag_plans_lower_pulses_and_needs_more_of_them():
+    known = ceiling.Approach(LAG).run(budget=1.0)
+    blind = ceiling.Approach(LAG, ceiling.Model("no lag", told={"tau_u": 0.0})).run(budget=1.0)
+    assert known.error <= 1e-6 and known.pulses >= 2
+    assert all(abs(d) <= abs(e) * (1.0 + 1e-9) for e, d in known.record)
+    assert blind.pulses > known.pulses
+    assert ceiling.beyond(blind.record, True)[1] == 0
+
+
+def test_a_model_that_breaks_the_rules_of_the_plant_is_refused():
+    with pytest.raises(ValueError, match="the model"):
+        ceiling.Approach(STICTION, ceiling.Model("bad", told={"f_c": -1.0}))
+
+
+def test_the_tables_are_the_distinct_rigid_draws_of_each_file():
+    stick_slip = ceiling.tables("realism_mc_fresh.toml")
+    lugre = ceiling.tables("realism_mc_lugre_fresh.toml")
+    assert len(stick_slip) == 30  # 15 draws x 2 seeds; the three targets share them
+    assert len(lugre) == 18
+    assert all(0.0 <= p["f_s_spread"] <= 0.15 and "sigma_0" not in p for p in stick_slip)
+    assert all(p["sigma_0"] > 0.0 for p in lugre)
+
+
+def test_a_model_takes_fields_told_and_scales_others():
+    model = ceiling.Model("m", told={"f_c": 80.0}, scale={"v_s": 1.25, "tau_u": 0.5})
+    table = {**LAG, "v_s": 2e-3}
+    assert model.params(table) == {**table, "f_c": 80.0, "v_s": 2.5e-3, "tau_u": 2e-3}
+    assert ceiling.MODELS[0].params(table) == table
+
+
+def test_runaways_are_counted_above_and_below_one_micrometre():
+    record = [(5e-6, 4e-6), (5e-6, 8e-6), (-2e-6, -3.2e-6), (5e-7, 2e-6), (5e-7, 0.0),
+              (-6e-7, -8e-7)]
+    # moving pulses at |e| >= 1 um: 3, of which 5 um -> 8 um and -2 um -> -3.2 um ran away
+    assert ceiling.beyond(record, True) == (3, 2, 8e-6)
+    # below: 0.5 um -> 2 um ran away; the pulse that did not move is not counted
+    assert ceiling.beyond(record, False) == (2, 1, 2e-6)
+
+
+#: Stribeck friction and random stiction: a pulse just above the breakaway creeps.
+STRIBECK = {**STICTION, "v_s": 4e-3, "seed": 6}
+
+
+def test_a_creep_not_seen_breaks_the_proof_and_the_guard_keeps_the_bound():
+    seen = ceiling.Approach(STRIBECK).run(e0=1e-5, budget=1.0)
+    unseen = ceiling.Approach(STRIBECK, ceiling.Model("u", unseen=ceiling.MOVED)).run(
+        e0=1e-5, budget=1.0)
+    guarded = ceiling.Approach(STRIBECK, ceiling.Model("g", unseen=ceiling.MOVED,
+                                                        guard=True)).run(e0=1e-5, budget=1.0)
+    # seeing every stick anew, the planner keeps the bound
+    assert seen.error <= 1e-6
+    assert ceiling.beyond(seen.record, True)[1] == 0
+    # a creep below 50 nm taken for none: the next pulse, planned above a proof that no
+    # longer holds, moves the table beyond 1.5*|e| plus a count
+    assert ceiling.beyond(unseen.record, True)[1] >= 1
+    # guarded, no pulse passes the bound, and this approach still ends within 1 um
+    for far in (True, False):
+        assert ceiling.beyond(guarded.record, far)[1] == 0
+    assert guarded.error <= 1e-6
