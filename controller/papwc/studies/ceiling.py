@@ -152,14 +152,18 @@ class Approach:
         self.model = Plant(model)
         self.lowest = model["f_s"] * (1.0 - model.get("f_s_spread", 0.0))
         self.highest = model["f_s"] * (1.0 + model.get("f_s_spread", 0.0))
-        #: Time taken (s), pulses, the error at the end (m), and the processor time the
-        #: planning and the table took (s).
+        #: Time taken (s), the error at the end (m), and the processor time the planning and
+        #: the table took (s).
         self.time = 0.0
         self.cpu = 0.0
-        self.pulses = 0
         self.error = math.inf
         #: Each pulse: the error before it and its move, m.
         self.record: list[tuple[float, float]] = []
+
+    @property
+    def pulses(self) -> int:
+        """Pulses made."""
+        return len(self.record)
 
     def move(self, state: dict, breakaway: float, height: float) -> float:
         """The model's move (m) of one sample at ``height`` (N) from ``state`` with the
@@ -222,7 +226,6 @@ class Approach:
             for _ in range(WAIT):
                 table.step(0.0, T)
             self.time += CYCLE
-            self.pulses += 1
             d = table.x - x0
             self.record.append((e, d))
             if (abs(d) > self.unseen if self.unseen else
