@@ -93,3 +93,19 @@ def test_a_creep_not_seen_breaks_the_proof_and_the_guard_keeps_the_bound():
     for far in (True, False):
         assert ceiling.beyond(guarded.record, far)[1] == 0
     assert guarded.error <= 1e-6
+
+
+def test_a_planner_learning_the_lag_keeps_the_table_among_its_candidates():
+    learner = ceiling.Approach(LAG, ceiling.Model("lag learned", learn=("tau_u",)))
+    assert len(learner.alive) == len(ceiling.GRIDS["tau_u"])
+    done = learner.run(budget=1.0)
+    assert done.error <= 1e-6
+    for far in (True, False):
+        assert ceiling.beyond(done.record, far)[1] == 0
+    # the pulses ruled lags out, never the table's own (4 ms, on the grid)
+    table = (ceiling.GRIDS["tau_u"].index(4e-3),)
+    assert table in done.alive
+    assert len(done.alive) < len(ceiling.GRIDS["tau_u"])
+    # it plans on the shortest lag left: never longer than the table's
+    assert done.corner() is done.candidate((min(k[0] for k in done.alive),))
+    assert min(k[0] for k in done.alive) <= table[0]

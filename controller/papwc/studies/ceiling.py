@@ -32,11 +32,12 @@ within reach of the policy on these tables, and which of the table's parameters 
 must learn for them.
 
 Run ``python -m papwc.studies.ceiling [--tables N]`` (N: at most that many tables of each
-file; about eleven minutes for all on two cores); it prints one line per model and file.
+file; about twelve minutes for all on two cores); it prints one line per model and file.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import statistics
@@ -80,13 +81,15 @@ class Model(NamedTuple):
     fields are the table's times a factor, and it does not see moves up to ``unseen`` (m; 0:
     it sees every stick anew). With ``guard``, no pulse above a proof may move the table
     beyond the runaway bound if the table stuck anew unseen and broke away at the lowest
-    force the spread allows."""
+    force the spread allows. The fields of ``learn`` the planner does not know: it learns
+    them over :data:`GRIDS` from its pulses (:class:`Approach`)."""
 
     label: str
     told: dict[str, float] = {}
     scale: dict[str, float] = {}
     unseen: float = 0.0
     guard: bool = False
+    learn: tuple[str, ...] = ()
 
     def params(self, table: dict[str, float]) -> dict[str, float]:
         """The model's plant parameters for the table's."""
@@ -111,7 +114,17 @@ MODELS = (
     Model("stiction spread at the range's top (15 %)", told={"f_s_spread": 0.15}),
     Model("the ripple not known (0)", told={"ripple": 0.0}),
     Model("f_c at the controllers' estimate (80 N)", told={"f_c": 80.0}),
+    Model("the lag and v_s learned from the pulses", learn=("tau_u", "v_s")),
 )
+#: What a planner learns a field over: values from the one under which a pulse moves the
+#: table farthest (no lag; friction falling off at the lowest speed) to the least far,
+#: spanning the Monte Carlo's ranges.
+GRIDS = {
+    "tau_u": tuple(k * 5e-4 for k in range(11)),
+    "v_s": tuple(2e-4 * 1.5**k for k in range(9)),
+}
+#: Relative tolerance of a candidate's move against a pulse's measured one.
+CONSISTENT = 0.05
 #: Largest number of tables taken of each file.
 TABLES_MAX = 1000
 
@@ -138,6 +151,17 @@ class Approach:
         The table's plant parameters.
     told : Model
         What the planner is told of the table (default: the table).
+
+    Notes
+    -----
+    A field the planner learns (``told.learn``) starts as every value of its grid; each pulse
+    keeps the combinations (candidates) under which it could have happened: one that moved
+    the table by ``d`` moves the candidate between ``(1 - CONSISTENT)*d`` and
+    ``(1 + CONSISTENT)*d`` for some breakaway the spread allows (the lowest moves it farthest,
+    the highest least), one that did not leaves the candidate at rest at the highest. If none
+    is left, the candidates stay as they were. The planner plans on the corner of those left
+    whose pulses move the table farthest (the lowest value of each field), so if the table is
+    among them a pulse moves it no farther than planned.
     """
 
     def __init__(self, params: dict[str, float], told: Model = MODELS[0]) -> None:
@@ -150,6 +174,13 @@ class Approach:
                 raise ValueError(f"the {where}: {problems[0]}")
         self.table = Plant(params)
         self.model = Plant(model)
+        self.model_params = model
+        self.learn = told.learn
+        #: Candidates still consistent with the pulses: indices into each learned grid.
+        self.alive: list[tuple[int, ...]] = list(itertools.product(
+            *(range(len(GRIDS[name])) for name in self.learn)))
+        self._candidates: dict[tuple[int, ...], Plant] = {}
+        self._corner: tuple[int, ...] = ()
         self.lowest = model["f_s"] * (1.0 - model.get("f_s_spread", 0.0))
         self.highest = model["f_s"] * (1.0 + model.get("f_s_spread", 0.0))
         #: Time taken (s), the error at the end (m), and the processor time the planning and
@@ -165,10 +196,50 @@ class Approach:
         """Pulses made."""
         return len(self.record)
 
-    def move(self, state: dict, breakaway: float, height: float) -> float:
-        """The model's move (m) of one sample at ``height`` (N) from ``state`` with the
-        breakaway at ``breakaway`` (N), read ``WAIT`` samples later."""
-        model = self.model
+    def candidate(self, key: tuple[int, ...]) -> Plant:
+        """The model with the learned fields at the grid points ``key``."""
+        if key not in self._candidates:
+            values = {name: GRIDS[name][i] for name, i in zip(self.learn, key, strict=True)}
+            self._candidates[key] = Plant({**self.model_params, **values})
+        return self._candidates[key]
+
+    def corner(self) -> Plant:
+        """The model planned on: the lowest grid point of each learned field among the
+        candidates left (the model itself when nothing is learned)."""
+        if self.learn:
+            key = tuple(min(k[i] for k in self.alive) for i in range(len(self.learn)))
+            if key != self._corner:
+                self._corner = key
+                self.model = self.candidate(key)
+        return self.model
+
+    def sift(self, state: dict, height: float, d: float, moved: bool) -> None:
+        """Keep the candidates under which the pulse (``height`` N from ``state``, a move of
+        ``d`` m, seen to move or not) could have happened."""
+        if not self.learn:
+            return
+        sign = math.copysign(1.0, height)
+        left = []
+        for key in self.alive:
+            model = self.candidate(key)
+            least = sign * self.move(state, self.highest, height, model)
+            if not moved:
+                if least == 0.0:
+                    left.append(key)
+                continue
+            most = sign * self.move(state, self.lowest, height, model)
+            if (least <= sign * d * (1.0 + CONSISTENT) + MOVED * 0.02
+                    and most >= sign * d * (1.0 - CONSISTENT) - MOVED * 0.02):
+                left.append(key)
+        if left:
+            self.alive = left
+
+    def move(self, state: dict, breakaway: float, height: float,
+             model: Plant | None = None) -> float:
+        """The move (m) of one sample at ``height`` (N) from ``state`` with the breakaway at
+        ``breakaway`` (N), read ``WAIT`` samples later, on ``model`` (default: the
+        planner's)."""
+        model = self.model if model is None else model
         model.set_state(state)
         model.f_s_now = breakaway
         x0 = model.x
@@ -217,6 +288,7 @@ class Approach:
             if abs(e) <= STOP:
                 break
             state = table.state()
+            self.corner()
             height = self.plan(state, breakaway, e)
             if self.guard and breakaway > self.lowest:
                 bound = self.plan(state, self.lowest, math.copysign(1.5 * abs(e) + COUNT, e))
@@ -228,8 +300,11 @@ class Approach:
             self.time += CYCLE
             d = table.x - x0
             self.record.append((e, d))
-            if (abs(d) > self.unseen if self.unseen else
-                    (d != 0.0 or table.stick_draws != draws)):
+            moved = (abs(d) > self.unseen if self.unseen else
+                     (d != 0.0 or table.stick_draws != draws))
+            self.sift(state, height, d, moved)
+            self.corner()
+            if moved:
                 breakaway = self.lowest
             else:
                 breakaway = self.proof(state, height, breakaway)
