@@ -32,7 +32,7 @@ within reach of the policy on these tables, and which of the table's parameters 
 must learn for them.
 
 Run ``python -m papwc.studies.ceiling [--tables N]`` (N: at most that many tables of each
-file; about twelve minutes for all on two cores); it prints one line per model and file.
+file; twelve to sixteen minutes for all on two cores); it prints one line per model and file.
 """
 
 from __future__ import annotations
@@ -123,8 +123,9 @@ GRIDS = {
     "tau_u": tuple(k * 5e-4 for k in range(11)),
     "v_s": tuple(2e-4 * 1.5**k for k in range(9)),
 }
-#: Relative tolerance of a candidate's move against a pulse's measured one.
-CONSISTENT = 0.05
+#: Relative tolerance of a candidate's move against a pulse's measured one (at 0.05 the
+#: LuGre tables, whose breakaway is not redrawn, kept candidates that ran away).
+CONSISTENT = 0.1
 #: Largest number of tables taken of each file.
 TABLES_MAX = 1000
 
