@@ -130,6 +130,16 @@ CONSISTENT = 0.1
 TABLES_MAX = 1000
 
 
+def pulse(plant: Plant, height: float) -> float:
+    """Apply one sample at ``height`` (N) to ``plant``, then no force for ``WAIT`` samples;
+    the move, m."""
+    x0 = plant.x
+    plant.step(height, T)
+    for _ in range(WAIT):
+        plant.step(0.0, T)
+    return plant.x - x0
+
+
 def tables(name: str) -> list[dict[str, float]]:
     """The plant parameters of the distinct rigid draws of ``scenarios/<name>`` (SI units)."""
     battery = load_battery(scenario_file(name))
@@ -243,11 +253,7 @@ class Approach:
         model = self.model if model is None else model
         model.set_state(state)
         model.f_s_now = breakaway
-        x0 = model.x
-        model.step(height, T)
-        for _ in range(WAIT):
-            model.step(0.0, T)
-        return model.x - x0
+        return pulse(model, height)
 
     def plan(self, state: dict, breakaway: float, e: float) -> float:
         """Height (N, along e) of the highest one-sample pulse whose move at ``breakaway`` is
@@ -294,12 +300,9 @@ class Approach:
             if self.guard and breakaway > self.lowest:
                 bound = self.plan(state, self.lowest, math.copysign(1.5 * abs(e) + COUNT, e))
                 height = math.copysign(min(abs(height), abs(bound)), e)
-            x0, draws = table.x, table.stick_draws
-            table.step(height, T)
-            for _ in range(WAIT):
-                table.step(0.0, T)
+            draws = table.stick_draws
+            d = pulse(table, height)
             self.time += CYCLE
-            d = table.x - x0
             self.record.append((e, d))
             moved = (abs(d) > self.unseen if self.unseen else
                      (d != 0.0 or table.stick_draws != draws))
