@@ -109,3 +109,62 @@ def test_a_planner_learning_the_lag_keeps_the_table_among_its_candidates():
     # it plans on the shortest lag left: never longer than the table's
     assert done.corner() is done.candidate((min(k[0] for k in done.alive),))
     assert min(k[0] for k in done.alive) <= table[0]
+
+
+def test_not_told_the_band_only_the_first_reading_rules_out_a_table_without_lag():
+    moves_only = ceiling.Approach(LAG, ceiling.Model("m", learn=("tau_u",), band=False))
+    first = ceiling.Approach(LAG, ceiling.Model("f", learn=("tau_u",), band=False, first=True))
+    # not told f_s and its spread, the planner starts from the sliding friction
+    assert moves_only.lowest == first.lowest == LAG["f_c"]
+    assert moves_only.highest == ceiling.F_P_MAX
+    moves_only.run(budget=0.6)
+    first.run(budget=0.6)
+    table = ceiling.GRIDS["tau_u"].index(4e-3)
+    for done in (moves_only, first):
+        assert (table,) in done.alive
+        for far in (True, False):
+            assert ceiling.beyond(done.record, far)[1] == 0
+    # from the moves alone every lag up to the table's stays possible, none included: a
+    # breakaway placed higher explains every move
+    assert {k[0] for k in moves_only.alive} == set(range(table + 1))
+    # the reading one sample after each pulse tells how fast the force rose: only lags
+    # near the table's are left, and the approach ends sooner and nearer
+    assert min(k[0] for k in first.alive) >= table - 2
+    assert first.pulses < moves_only.pulses
+    assert first.error < moves_only.error <= 1e-6
+
+
+def test_through_a_noisy_encoder_the_first_reading_still_rules_out_no_lag():
+    noisy = {**LAG, "noise_std": 2e-7, "x_resolution": 1e-7}
+    done = ceiling.Approach(noisy, ceiling.Model("e", learn=("tau_u",), band=False,
+                                                 first=True, encoder=True)).run(budget=0.6)
+    # the slack of a move and of a first reading: three standard deviations and a count
+    assert done.slack_d == pytest.approx(3.0 * 2e-7 * (2.0 / ceiling.REST_READS) ** 0.5 + 1e-7)
+    assert done.slack_first > done.slack_d
+    table = ceiling.GRIDS["tau_u"].index(4e-3)
+    assert (table,) in done.alive and (0,) not in done.alive
+    assert done.error <= 1e-6
+    for far in (True, False):
+        assert ceiling.beyond(done.record, far)[1] == 0
+
+
+def test_the_first_reading_of_a_pulse_through_a_lag_is_a_small_part_of_its_move():
+    for tau, share in ((0.0, 0.5), (4e-3, 0.3)):
+        plant = ceiling.Plant({**LAG, "tau_u": tau})
+        plant.f_s_now = 130.0
+        first, d = ceiling.pulse_path(plant, 200.0)
+        assert 0.0 < first < d
+        # without lag most of the move is done by the first reading, with 4 ms little of it
+        assert (first / d > share) == (tau == 0.0)
+
+
+def test_rows_are_numbers_of_the_models_each_once():
+    assert ceiling.rows("1") == (1,)
+    assert ceiling.rows(f"2, {len(ceiling.MODELS)}") == (2, len(ceiling.MODELS))
+    for bad, said in (("0", "outside"), ("x", "not a whole number"), ("3,3", "twice"),
+                      (str(len(ceiling.MODELS) + 1), "outside")):
+        with pytest.raises(ceiling.argparse.ArgumentTypeError, match=said):
+            ceiling.rows(bad)
+    with pytest.raises(SystemExit) as stop:
+        ceiling.main(["--rows", "0"])
+    assert stop.value.code == 2

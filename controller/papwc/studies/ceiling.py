@@ -6,8 +6,9 @@ and ``scenarios/realism_mc_lugre_fresh.toml``: Stribeck friction, ripple, an act
 random stiction or LuGre pre-sliding, each drawn) are stepped with the model layer's plant
 (:class:`papwc.model.dynamics.Plant`). The *planner* knows a model of the table -- the plant's
 parameters, or some of them wrong (:data:`MODELS`) -- but never the breakaway force drawn at
-the present stick, and reads the table's true position (no encoder: a ceiling). From rest at
-``E0`` from the target it repeats, while ``|e|`` is above ``STOP`` and the time allows:
+the present stick, and reads the table's true position (no encoder: a ceiling; one row reads
+it through the table's encoder instead). From rest at ``E0`` from the target it repeats, while
+``|e|`` is above ``STOP`` and the time allows:
 
 * plan one sample, the highest height whose move on the model, with the breakaway at the
   lowest force still possible, is at most ``|e|`` (each candidate simulated on a copy of the
@@ -29,14 +30,20 @@ pulses that moved at ``|e| >= 1 um`` and below went beyond ``1.5*|e|`` plus one 
 runaway bound of R4 and R5) with the largest such move, and the processor time a pulse took
 (the planning's simulations and the table's step). The rows say whether R1 and R4 are
 within reach of the policy on these tables, and which of the table's parameters a controller
-must learn for them.
+must learn for them. The last rows learn the lag and v_s from the pulses, the last three not
+told where the breakaway is drawn either (:class:`Approach`), from the moves alone or from the
+first reading after each pulse as well: what a controller must read to learn them. (The
+planner's simulations start from the table's state at rest, as every row's do: the ripple's
+phase there is known to it.)
 
-Run ``python -m papwc.studies.ceiling [--tables N]`` (N: at most that many tables of each
-file; twelve to sixteen minutes for all on two cores); it prints one line per model and file.
+Run ``python -m papwc.studies.ceiling [--tables N] [--rows K,L,...]`` (N: at most that many
+tables of each file; K, L: the rows of :data:`MODELS` by number from 1); it prints one line
+per model and file.
 """
 
 from __future__ import annotations
 
+import argparse
 import itertools
 import math
 import os
@@ -48,12 +55,14 @@ from typing import NamedTuple
 
 from papwc.battery.plan import plan_runs
 from papwc.battery.schema import load_battery
+from papwc.limits import whole_number
 from papwc.model.dynamics import Plant
 from papwc.model.plant import plant_problems
 from papwc.resources import scenario_file
-from papwc.studies.counts import MOVED, parse_count
+from papwc.studies.counts import MOVED
 
-__all__ = ["BUDGET", "E0", "MODELS", "Approach", "Model", "approach", "beyond", "main", "tables"]
+__all__ = ["BUDGET", "E0", "MODELS", "Approach", "Model", "approach", "beyond", "main", "pulse",
+           "pulse_path", "rows", "tables"]
 
 #: Scenario files whose rigid draws are the tables.
 FILES = ("realism_mc_fresh.toml", "realism_mc_lugre_fresh.toml")
@@ -82,7 +91,13 @@ class Model(NamedTuple):
     it sees every stick anew). With ``guard``, no pulse above a proof may move the table
     beyond the runaway bound if the table stuck anew unseen and broke away at the lowest
     force the spread allows. The fields of ``learn`` the planner does not know: it learns
-    them over :data:`GRIDS` from its pulses (:class:`Approach`)."""
+    them over :data:`GRIDS` from its pulses (:class:`Approach`). Without ``band`` it is not
+    told where the breakaway is drawn (``f_s`` and ``f_s_spread``): it takes the lowest
+    breakaway of a fresh stick from the moves it made, as the exact-model controller does.
+    With ``first`` it also reads the table one sample after each pulse (the first reading
+    after the pulse's sample), and keeps only the candidates that explain that reading too.
+    With ``encoder`` it reads the table through its encoder (resolution and noise, both
+    told) instead of its true position (:meth:`Approach.run`)."""
 
     label: str
     told: dict[str, float] = {}
@@ -90,6 +105,9 @@ class Model(NamedTuple):
     unseen: float = 0.0
     guard: bool = False
     learn: tuple[str, ...] = ()
+    band: bool = True
+    first: bool = False
+    encoder: bool = False
 
     def params(self, table: dict[str, float]) -> dict[str, float]:
         """The model's plant parameters for the table's."""
@@ -115,6 +133,12 @@ MODELS = (
     Model("the ripple not known (0)", told={"ripple": 0.0}),
     Model("f_c at the controllers' estimate (80 N)", told={"f_c": 80.0}),
     Model("the lag and v_s learned from the pulses", learn=("tau_u", "v_s")),
+    Model("the lag and v_s learned, f_s and its spread not told", learn=("tau_u", "v_s"),
+          band=False),
+    Model("the lag and v_s learned, f_s and its spread not told, the first reading read",
+          learn=("tau_u", "v_s"), band=False, first=True),
+    Model("the same, through the table's encoder", learn=("tau_u", "v_s"), band=False,
+          first=True, encoder=True),
 )
 #: What a planner learns a field over: values from the one under which a pulse moves the
 #: table farthest (no lag; friction falling off at the lowest speed) to the least far,
@@ -126,18 +150,35 @@ GRIDS = {
 #: Relative tolerance of a candidate's move against a pulse's measured one (at 0.05 the
 #: LuGre tables, whose breakaway is not redrawn, kept candidates that ran away).
 CONSISTENT = 0.1
+#: Not told the band: the recent moves the lowest breakaway of a fresh stick is taken from,
+#: and the least margin below the lowest they imply (relative; the exact-model controller's).
+FRESH_MOVES = 12
+FRESH_MARGIN = 0.005
+#: Through the encoder: the readings at rest averaged (the last of the ``WAIT`` after a
+#: pulse), and the standard deviations of a move and of a first reading beyond which the
+#: planner takes them for more than noise.
+REST_READS = 3
+Z_NOISE = 3.0
 #: Largest number of tables taken of each file.
 TABLES_MAX = 1000
+
+
+def pulse_path(plant: Plant, height: float) -> tuple[float, float]:
+    """Apply one sample at ``height`` (N) to ``plant``, then no force for ``WAIT`` samples;
+    the move at the end of the pulse's sample (the first reading after it) and at the end,
+    m."""
+    x0 = plant.x
+    plant.step(height, T)
+    first = plant.x - x0
+    for _ in range(WAIT):
+        plant.step(0.0, T)
+    return first, plant.x - x0
 
 
 def pulse(plant: Plant, height: float) -> float:
     """Apply one sample at ``height`` (N) to ``plant``, then no force for ``WAIT`` samples;
     the move, m."""
-    x0 = plant.x
-    plant.step(height, T)
-    for _ in range(WAIT):
-        plant.step(0.0, T)
-    return plant.x - x0
+    return pulse_path(plant, height)[1]
 
 
 def tables(name: str) -> list[dict[str, float]]:
@@ -173,6 +214,15 @@ class Approach:
     is left, the candidates stay as they were. The planner plans on the corner of those left
     whose pulses move the table farthest (the lowest value of each field), so if the table is
     among them a pulse moves it no farther than planned.
+
+    Not told the breakaway's band (``told.band`` false), a candidate is kept while some
+    breakaway above the sliding friction ``f_c`` explains the move (and, reading the first
+    reading, ``told.first``, that reading too, within the same tolerance); a pulse that did
+    not move keeps every candidate (the breakaway may be as high as any). For each corner of
+    the candidates left (the lowest and highest value of each field) the lowest breakaway of
+    a fresh stick is the lowest of those the recent moves imply on it, lowered by their spread
+    over their number (at least ``FRESH_MARGIN`` of it), never below ``f_c``; on a stick that
+    held, the proofs of its pulses on that corner; the pulse is the lowest the corners plan.
     """
 
     def __init__(self, params: dict[str, float], told: Model = MODELS[0]) -> None:
@@ -187,13 +237,37 @@ class Approach:
         self.model = Plant(model)
         self.model_params = model
         self.learn = told.learn
+        self.band = told.band
+        self.first = told.first
+        self.encoder = told.encoder
+        #: What a measured move and a first reading may be off by, m: a fiftieth of
+        #: ``MOVED`` on the true position; through the encoder, ``Z_NOISE`` standard
+        #: deviations of the noise on them and a count.
+        sigma = params.get("noise_std", 0.0) if self.encoder else 0.0
+        count = params.get("x_resolution", 0.0) if self.encoder else 0.0
+        self.slack_d = (Z_NOISE * sigma * math.sqrt(2.0 / REST_READS) + count
+                        if self.encoder else MOVED * 0.02)
+        self.slack_first = (Z_NOISE * sigma * math.sqrt(1.0 + 1.0 / REST_READS) + count
+                            if self.encoder else MOVED * 0.02)
         #: Candidates still consistent with the pulses: indices into each learned grid.
         self.alive: list[tuple[int, ...]] = list(itertools.product(
             *(range(len(GRIDS[name])) for name in self.learn)))
         self._candidates: dict[tuple[int, ...], Plant] = {}
         self._corner: tuple[int, ...] = ()
-        self.lowest = model["f_s"] * (1.0 - model.get("f_s_spread", 0.0))
-        self.highest = model["f_s"] * (1.0 + model.get("f_s_spread", 0.0))
+        self.f_c = model["f_c"]
+        if self.band:
+            self.lowest = model["f_s"] * (1.0 - model.get("f_s_spread", 0.0))
+            self.highest = model["f_s"] * (1.0 + model.get("f_s_spread", 0.0))
+        else:
+            # friction holds the table at least at f_c; it may break away as high as a pulse
+            self.lowest = self.f_c
+            self.highest = F_P_MAX
+        #: Without the band: the moves (state, height, move) and the pulses that did not move
+        #: on the present stick (state, height), and the breakaways each corner implies.
+        self.moves: list[tuple[dict, float, float]] = []
+        self.held: list[tuple[dict, float]] = []
+        self._implied: dict[tuple[tuple[int, ...], int], float] = {}
+        self._proofs: dict[tuple[tuple[int, ...], int], float] = {}
         #: Time taken (s), the error at the end (m), and the processor time the planning and
         #: the table took (s).
         self.time = 0.0
@@ -224,26 +298,71 @@ class Approach:
                 self.model = self.candidate(key)
         return self.model
 
-    def sift(self, state: dict, height: float, d: float, moved: bool) -> None:
+    def corners(self) -> list[tuple[int, ...]]:
+        """The lowest and highest grid point of each learned field among the candidates
+        left, combined (the key ``()`` when nothing is learned)."""
+        ends = [sorted({min(k[i] for k in self.alive), max(k[i] for k in self.alive)})
+                for i in range(len(self.learn))]
+        return list(itertools.product(*ends))
+
+    def sift(self, state: dict, height: float, first: float, d: float, moved: bool) -> None:
         """Keep the candidates under which the pulse (``height`` N from ``state``, a move of
-        ``d`` m, seen to move or not) could have happened."""
+        ``d`` m, ``first`` m at its first reading, seen to move or not) could have
+        happened."""
         if not self.learn:
             return
         sign = math.copysign(1.0, height)
         left = []
         for key in self.alive:
             model = self.candidate(key)
+            if not self.band:
+                if not moved:
+                    left.append(key)
+                    continue
+                if self.explains(state, height, first, d, model):
+                    left.append(key)
+                continue
             least = sign * self.move(state, self.highest, height, model)
             if not moved:
                 if least == 0.0:
                     left.append(key)
                 continue
             most = sign * self.move(state, self.lowest, height, model)
-            if (least <= sign * d * (1.0 + CONSISTENT) + MOVED * 0.02
-                    and most >= sign * d * (1.0 - CONSISTENT) - MOVED * 0.02):
+            if (least <= sign * d * (1.0 + CONSISTENT) + self.slack_d
+                    and most >= sign * d * (1.0 - CONSISTENT) - self.slack_d):
                 left.append(key)
         if left:
             self.alive = left
+
+    def explains(self, state: dict, height: float, first: float, d: float,
+                 model: Plant) -> bool:
+        """Whether some breakaway above ``f_c`` moves ``model`` by ``d`` (m) within the
+        tolerance, and, reading the first reading, moves it by ``first`` (m) there too (a
+        first reading of at most twice ``slack_first`` is not compared)."""
+        sign = math.copysign(1.0, height)
+        if (sign * self.move(state, self.f_c, height, model)
+                < sign * d * (1.0 - CONSISTENT) - self.slack_d):
+            return False  # even breaking away at f_c it does not move that far
+        if not self.first or abs(first) <= 2.0 * self.slack_first:
+            return True  # (a first reading within twice its slack tells no candidate apart)
+        b = self.implied_on(state, height, d, model)
+        model.set_state(state)
+        model.f_s_now = b
+        at_first = pulse_path(model, height)[0]
+        return abs(at_first - first) <= CONSISTENT * abs(first) + self.slack_first
+
+    def implied_on(self, state: dict, height: float, d: float, model: Plant) -> float:
+        """Breakaway (N, between ``f_c`` and the height) at which ``model`` moves ``d`` (m)
+        from ``state`` (bisection: a higher breakaway moves it less)."""
+        sign = math.copysign(1.0, height)
+        lo, hi = self.f_c, max(abs(height), self.f_c)
+        for _ in range(STEPS):
+            mid = 0.5 * (lo + hi)
+            if sign * self.move(state, mid, height, model) > sign * d:
+                lo = mid
+            else:
+                hi = mid
+        return 0.5 * (lo + hi)
 
     def move(self, state: dict, breakaway: float, height: float,
              model: Plant | None = None) -> float:
@@ -255,63 +374,129 @@ class Approach:
         model.f_s_now = breakaway
         return pulse(model, height)
 
-    def plan(self, state: dict, breakaway: float, e: float) -> float:
+    def plan(self, state: dict, breakaway: float, e: float, model: Plant | None = None
+             ) -> float:
         """Height (N, along e) of the highest one-sample pulse whose move at ``breakaway`` is
-        at most ``|e|``."""
+        at most ``|e|``, on ``model`` (default: the planner's)."""
         sign = math.copysign(1.0, e)
-        if sign * self.move(state, breakaway, sign * F_P_MAX) <= abs(e):
+        if sign * self.move(state, breakaway, sign * F_P_MAX, model) <= abs(e):
             return sign * F_P_MAX
         lo, hi = 0.0, F_P_MAX
         for _ in range(STEPS):
             mid = 0.5 * (lo + hi)
-            if sign * self.move(state, breakaway, sign * mid) <= abs(e):
+            if sign * self.move(state, breakaway, sign * mid, model) <= abs(e):
                 lo = mid
             else:
                 hi = mid
         return sign * lo
 
-    def proof(self, state: dict, height: float, breakaway: float) -> float:
+    def proof(self, state: dict, height: float, breakaway: float,
+              model: Plant | None = None) -> float:
         """Least breakaway (N) at which the model says ``height`` does not move the table
-        from ``state``, searched above ``breakaway``."""
+        from ``state``, searched above ``breakaway``, on ``model`` (default: the
+        planner's)."""
         lo, hi = breakaway, max(self.highest, breakaway)
         for _ in range(STEPS):
             mid = 0.5 * (lo + hi)
-            if self.move(state, mid, height) != 0.0:
+            if self.move(state, mid, height, model) != 0.0:
                 lo = mid
             else:
                 hi = mid
         return hi
 
+    def fresh(self, key: tuple[int, ...]) -> float:
+        """Lowest breakaway (N) of a fresh stick on the candidate ``key``, from the recent
+        moves (not told the band)."""
+        model = self.candidate(key)
+        start = max(len(self.moves) - FRESH_MOVES, 0)
+        seen = []
+        for i in range(start, len(self.moves)):
+            if (key, i) not in self._implied:
+                state, height, d = self.moves[i]
+                self._implied[key, i] = self.implied_on(state, height, d, model)
+            seen.append(self._implied[key, i])
+        if not seen:
+            return self.f_c
+        low = min(seen)
+        return max(low - max((max(seen) - low) / len(seen), FRESH_MARGIN * low), self.f_c)
+
+    def plan_open(self, state: dict, e: float) -> float:
+        """Not told the band: the lowest height (N, along e) the corners plan, each for its
+        lowest breakaway still possible."""
+        heights = []
+        for key in self.corners():
+            model = self.candidate(key)
+            breakaway = self.fresh(key)
+            for j, (held_state, held) in enumerate(self.held):
+                if (key, j) not in self._proofs:
+                    self._proofs[key, j] = self.proof(held_state, held, self.f_c, model)
+                breakaway = max(breakaway, self._proofs[key, j])
+            heights.append(self.plan(state, breakaway, e, model))
+        return min(heights, key=abs)
+
     def run(self, e0: float = E0, budget: float = BUDGET) -> Approach:
-        """Approach a target ``e0`` (m) away, for at most ``budget`` s."""
+        """Approach a target ``e0`` (m) away, for at most ``budget`` s.
+
+        The planner's error and moves are the table's true ones, or, through the encoder
+        (``encoder``), read: the position at rest is the mean of the last ``REST_READS``
+        readings after a pulse, a move the change of that mean, the first reading the one
+        after the pulse's sample less the mean before; a move within ``slack_d`` of none is
+        taken for none. The record holds the true error and move.
+        """
         start = time.process_time()
         table = self.table
+        readings = []
         for _ in range(WAIT):
             table.step(0.0, T)
+            readings.append(table.x_meas())
+        rest = statistics.fmean(readings[-REST_READS:])
         target = table.x + e0
         breakaway = self.lowest
         while self.time + CYCLE <= budget + 1e-12:
             e = target - table.x
-            if abs(e) <= STOP:
+            seen = target - rest if self.encoder else e
+            if abs(seen) <= STOP:
                 break
             state = table.state()
             self.corner()
-            height = self.plan(state, breakaway, e)
+            if self.band:
+                height = self.plan(state, breakaway, seen)
+            else:
+                height = self.plan_open(state, seen)
             if self.guard and breakaway > self.lowest:
-                bound = self.plan(state, self.lowest, math.copysign(1.5 * abs(e) + COUNT, e))
-                height = math.copysign(min(abs(height), abs(bound)), e)
+                bound = self.plan(state, self.lowest,
+                                  math.copysign(1.5 * abs(seen) + COUNT, seen))
+                height = math.copysign(min(abs(height), abs(bound)), seen)
             draws = table.stick_draws
-            d = pulse(table, height)
+            x0 = table.x
+            table.step(height, T)
+            first, read_first = table.x - x0, table.x_meas()
+            readings = []
+            for _ in range(WAIT):
+                table.step(0.0, T)
+                readings.append(table.x_meas())
+            d = table.x - x0
             self.time += CYCLE
             self.record.append((e, d))
-            moved = (abs(d) > self.unseen if self.unseen else
-                     (d != 0.0 or table.stick_draws != draws))
-            self.sift(state, height, d, moved)
+            if self.encoder:
+                before, rest = rest, statistics.fmean(readings[-REST_READS:])
+                first, d_seen = read_first - before, rest - before
+                moved = abs(d_seen) > self.slack_d
+            else:
+                d_seen = d
+                moved = (abs(d) > self.unseen if self.unseen else
+                         (d != 0.0 or table.stick_draws != draws))
+            self.sift(state, height, first, d_seen, moved)
             self.corner()
             if moved:
                 breakaway = self.lowest
+                self.moves.append((state, height, d_seen))
+                self.held = []
+                self._proofs.clear()
             else:
-                breakaway = self.proof(state, height, breakaway)
+                self.held.append((state, height))
+                if self.band:
+                    breakaway = self.proof(state, height, breakaway)
         self.error = abs(target - table.x)
         self.cpu = time.process_time() - start
         return self
@@ -331,25 +516,43 @@ def approach(params: dict[str, float], told: Model) -> Approach:
     return Approach(params, told).run()
 
 
+def rows(text: str) -> tuple[int, ...]:
+    """An argparse type: row numbers of :data:`MODELS` (1-based), separated by commas."""
+    parse = whole_number(1, len(MODELS))
+    out = tuple(parse(part.strip()) for part in text.split(","))
+    if len(set(out)) != len(out):
+        raise argparse.ArgumentTypeError(f"{text!r} names a row twice")
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Print, per file and model, what the approaches reached.
 
     ``argv`` (default ``sys.argv[1:]``): ``--tables N`` (1 to ``TABLES_MAX``: at most N
-    tables of each file, default all); anything else is refused (exit 2).
+    tables of each file, default all), ``--rows K,L,...`` (the models of :data:`MODELS`
+    by number from 1, default all, each once); anything else is refused (exit 2).
     """
-    count = parse_count(argv, "python -m papwc.studies.ceiling",
-                        "what one-sample pulses planned for the lowest breakaway still "
-                        "possible reach on the Monte Carlo's rigid tables when the planner "
-                        "knows the table", "--tables", TABLES_MAX, TABLES_MAX,
-                        "tables of each file")
+    parser = argparse.ArgumentParser(
+        prog="python -m papwc.studies.ceiling",
+        description="what one-sample pulses planned for the lowest breakaway still possible "
+                    "reach on the Monte Carlo's rigid tables when the planner knows the table "
+                    "or learns part of it")
+    parser.add_argument("--tables", type=whole_number(1, TABLES_MAX), default=TABLES_MAX,
+                        help=f"tables of each file (1 to {TABLES_MAX}, default all)")
+    parser.add_argument("--rows", type=rows, default=tuple(range(1, len(MODELS) + 1)),
+                        help=f"the models by number, 1 to {len(MODELS)}, separated by commas "
+                             "(default all)")
+    args = parser.parse_args(argv)
+    count = args.tables
+    models = [MODELS[k - 1] for k in args.rows]
     print(f"from rest {E0 * 1e6:g} um from the target, {BUDGET:g} s, one pulse per "
           f"{CYCLE:g} s, ending at |e| <= {STOP * 1e6:g} um; the planner reads the true "
-          "position")
+          "position (through the table's encoder where its row says so)")
     workers = min(2, os.cpu_count() or 1)
     with ProcessPoolExecutor(workers) as pool:
         for name in FILES:
             found = tables(name)[:count]
-            for told in MODELS:
+            for told in models:
                 if "f_s_spread" in told.told and not any(p.get("f_s_spread") for p in found):
                     continue  # LuGre: no random stiction to take wider
                 done = list(pool.map(approach, found, [told] * len(found)))
