@@ -49,7 +49,7 @@ import math
 import os
 import statistics
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import NamedTuple
 
@@ -61,8 +61,8 @@ from papwc.model.plant import plant_problems
 from papwc.resources import scenario_file
 from papwc.studies.counts import MOVED
 
-__all__ = ["BUDGET", "E0", "MODELS", "Approach", "Model", "approach", "beyond", "main", "pulse",
-           "pulse_path", "rows", "tables"]
+__all__ = ["BUDGET", "E0", "MODELS", "Approach", "Model", "approach", "beyond", "halve", "main",
+           "pulse", "pulse_path", "rows", "tables"]
 
 #: Scenario files whose rigid draws are the tables.
 FILES = ("realism_mc_fresh.toml", "realism_mc_lugre_fresh.toml")
@@ -163,15 +163,20 @@ Z_NOISE = 3.0
 TABLES_MAX = 1000
 
 
-def pulse_path(plant: Plant, height: float) -> tuple[float, float]:
+def pulse_path(plant: Plant, height: float, readings: list[float] | None = None
+               ) -> tuple[float, float]:
     """Apply one sample at ``height`` (N) to ``plant``, then no force for ``WAIT`` samples;
     the move at the end of the pulse's sample (the first reading after it) and at the end,
-    m."""
+    m. With ``readings``, the encoder's reading (:meth:`Plant.x_meas`, m) after each sample
+    is appended to it."""
     x0 = plant.x
-    plant.step(height, T)
-    first = plant.x - x0
-    for _ in range(WAIT):
-        plant.step(0.0, T)
+    first = 0.0
+    for k, u in enumerate((height,) + (0.0,) * WAIT):
+        plant.step(u, T)
+        if k == 0:
+            first = plant.x - x0
+        if readings is not None:
+            readings.append(plant.x_meas())
     return first, plant.x - x0
 
 
@@ -179,6 +184,18 @@ def pulse(plant: Plant, height: float) -> float:
     """Apply one sample at ``height`` (N) to ``plant``, then no force for ``WAIT`` samples;
     the move, m."""
     return pulse_path(plant, height)[1]
+
+
+def halve(inside: Callable[[float], bool], lo: float, hi: float) -> tuple[float, float]:
+    """``STEPS`` halvings of ``[lo, hi]``, keeping ``lo`` where ``inside`` holds and ``hi``
+    where it does not; the bracket left."""
+    for _ in range(STEPS):
+        mid = 0.5 * (lo + hi)
+        if inside(mid):
+            lo = mid
+        else:
+            hi = mid
+    return lo, hi
 
 
 def tables(name: str) -> list[dict[str, float]]:
@@ -311,14 +328,13 @@ class Approach:
         happened."""
         if not self.learn:
             return
+        if not self.band and not moved:
+            return  # the breakaway may be as high as any pulse: every candidate is kept
         sign = math.copysign(1.0, height)
         left = []
         for key in self.alive:
             model = self.candidate(key)
             if not self.band:
-                if not moved:
-                    left.append(key)
-                    continue
                 if self.explains(state, height, first, d, model):
                     left.append(key)
                 continue
@@ -355,13 +371,8 @@ class Approach:
         """Breakaway (N, between ``f_c`` and the height) at which ``model`` moves ``d`` (m)
         from ``state`` (bisection: a higher breakaway moves it less)."""
         sign = math.copysign(1.0, height)
-        lo, hi = self.f_c, max(abs(height), self.f_c)
-        for _ in range(STEPS):
-            mid = 0.5 * (lo + hi)
-            if sign * self.move(state, mid, height, model) > sign * d:
-                lo = mid
-            else:
-                hi = mid
+        lo, hi = halve(lambda b: sign * self.move(state, b, height, model) > sign * d,
+                       self.f_c, max(abs(height), self.f_c))
         return 0.5 * (lo + hi)
 
     def move(self, state: dict, breakaway: float, height: float,
@@ -381,13 +392,8 @@ class Approach:
         sign = math.copysign(1.0, e)
         if sign * self.move(state, breakaway, sign * F_P_MAX, model) <= abs(e):
             return sign * F_P_MAX
-        lo, hi = 0.0, F_P_MAX
-        for _ in range(STEPS):
-            mid = 0.5 * (lo + hi)
-            if sign * self.move(state, breakaway, sign * mid, model) <= abs(e):
-                lo = mid
-            else:
-                hi = mid
+        lo, _ = halve(lambda h: sign * self.move(state, breakaway, sign * h, model) <= abs(e),
+                      0.0, F_P_MAX)
         return sign * lo
 
     def proof(self, state: dict, height: float, breakaway: float,
@@ -395,14 +401,8 @@ class Approach:
         """Least breakaway (N) at which the model says ``height`` does not move the table
         from ``state``, searched above ``breakaway``, on ``model`` (default: the
         planner's)."""
-        lo, hi = breakaway, max(self.highest, breakaway)
-        for _ in range(STEPS):
-            mid = 0.5 * (lo + hi)
-            if self.move(state, mid, height, model) != 0.0:
-                lo = mid
-            else:
-                hi = mid
-        return hi
+        return halve(lambda b: self.move(state, b, height, model) != 0.0,
+                     breakaway, max(self.highest, breakaway))[1]
 
     def fresh(self, key: tuple[int, ...]) -> float:
         """Lowest breakaway (N) of a fresh stick on the candidate ``key``, from the recent
@@ -468,19 +468,13 @@ class Approach:
                                   math.copysign(1.5 * abs(seen) + COUNT, seen))
                 height = math.copysign(min(abs(height), abs(bound)), seen)
             draws = table.stick_draws
-            x0 = table.x
-            table.step(height, T)
-            first, read_first = table.x - x0, table.x_meas()
-            readings = []
-            for _ in range(WAIT):
-                table.step(0.0, T)
-                readings.append(table.x_meas())
-            d = table.x - x0
+            readings: list[float] | None = [] if self.encoder else None
+            first, d = pulse_path(table, height, readings)
             self.time += CYCLE
             self.record.append((e, d))
-            if self.encoder:
+            if readings is not None:
                 before, rest = rest, statistics.fmean(readings[-REST_READS:])
-                first, d_seen = read_first - before, rest - before
+                first, d_seen = readings[0] - before, rest - before
                 moved = abs(d_seen) > self.slack_d
             else:
                 d_seen = d
