@@ -34,7 +34,9 @@ must learn for them. The last rows learn the lag and v_s from the pulses, the la
 told where the breakaway is drawn either (:class:`Approach`), from the moves alone or from the
 first reading after each pulse as well: what a controller must read to learn them. (The
 planner's simulations start from the table's state at rest, as every row's do: the ripple's
-phase there is known to it.)
+phase there is known to it.) The last three rows do the same on the one-pulse model of
+:mod:`papwc.studies.one_pulse` (:class:`FastApproach`), ``f_c`` learned too in the last two,
+the last through the table's encoder.
 
 Run ``python -m papwc.studies.ceiling [--tables N] [--rows K,L,...]`` (N: at most that many
 tables of each file; K, L: the rows of :data:`MODELS` by number from 1); it prints one line
@@ -60,9 +62,10 @@ from papwc.model.dynamics import Plant
 from papwc.model.plant import plant_problems
 from papwc.resources import scenario_file
 from papwc.studies.counts import MOVED
+from papwc.studies.one_pulse import CONSISTENT, FRESH_MARGIN, FRESH_MOVES, Candidates, TableEvidence
 
-__all__ = ["BUDGET", "E0", "MODELS", "Approach", "Model", "approach", "beyond", "halve", "main",
-           "pulse", "pulse_path", "rows", "tables"]
+__all__ = ["BUDGET", "E0", "MODELS", "Approach", "FastApproach", "Model", "approach", "beyond",
+           "halve", "main", "pulse", "pulse_path", "rows", "tables"]
 
 #: Scenario files whose rigid draws are the tables.
 FILES = ("realism_mc_fresh.toml", "realism_mc_lugre_fresh.toml")
@@ -97,7 +100,8 @@ class Model(NamedTuple):
     With ``first`` it also reads the table one sample after each pulse (the first reading
     after the pulse's sample), and keeps only the candidates that explain that reading too.
     With ``encoder`` it reads the table through its encoder (resolution and noise, both
-    told) instead of its true position (:meth:`Approach.run`)."""
+    told) instead of its true position (:meth:`Approach.run`). With ``fast`` its candidates
+    are tables of the one-pulse model (:class:`FastApproach`)."""
 
     label: str
     told: dict[str, float] = {}
@@ -108,6 +112,7 @@ class Model(NamedTuple):
     band: bool = True
     first: bool = False
     encoder: bool = False
+    fast: bool = False
 
     def params(self, table: dict[str, float]) -> dict[str, float]:
         """The model's plant parameters for the table's."""
@@ -139,6 +144,12 @@ MODELS = (
           learn=("tau_u", "v_s"), band=False, first=True),
     Model("the same, through the table's encoder", learn=("tau_u", "v_s"), band=False,
           first=True, encoder=True),
+    Model("the lag and v_s learned on the one-pulse model, f_s and its spread not told, the "
+          "first reading read", learn=("tau_u", "v_s"), band=False, first=True, fast=True),
+    Model("the same, f_c learned too", learn=("tau_u", "v_s", "f_c"), band=False, first=True,
+          fast=True),
+    Model("the same, through the table's encoder", learn=("tau_u", "v_s", "f_c"), band=False,
+          first=True, encoder=True, fast=True),
 )
 #: What a planner learns a field over: values from the one under which a pulse moves the
 #: table farthest (no lag; friction falling off at the lowest speed) to the least far,
@@ -146,14 +157,13 @@ MODELS = (
 GRIDS = {
     "tau_u": tuple(k * 5e-4 for k in range(11)),
     "v_s": tuple(2e-4 * 1.5**k for k in range(9)),
+    "f_c": tuple(60.0 + 5.0 * k for k in range(15)),
 }
-#: Relative tolerance of a candidate's move against a pulse's measured one (at 0.05 the
-#: LuGre tables, whose breakaway is not redrawn, kept candidates that ran away).
-CONSISTENT = 0.1
-#: Not told the band: the recent moves the lowest breakaway of a fresh stick is taken from,
-#: and the least margin below the lowest they imply (relative; the exact-model controller's).
-FRESH_MOVES = 12
-FRESH_MARGIN = 0.005
+# The tolerance of a candidate's move against a pulse's measured one (CONSISTENT), and the
+# recent moves and margin of a fresh stick's lowest breakaway, are those of
+# papwc.studies.one_pulse (at a tolerance of 0.05 the LuGre tables, whose breakaway is not
+# redrawn, kept candidates that ran away; the margin is the exact-model controller's).
+
 #: Through the encoder: the readings at rest averaged (the last of the ``WAIT`` after a
 #: pulse), and the standard deviations of a move and of a first reading beyond which the
 #: planner takes them for more than noise.
@@ -496,6 +506,50 @@ class Approach:
         return self
 
 
+class FastApproach(Approach):
+    """:class:`Approach` not told the breakaway's band, whose candidates are tables of the
+    one-pulse model (:class:`papwc.studies.one_pulse.TableEvidence`: the table's ``m``, ``c``
+    and Stribeck exponent told, its ripple and LuGre's bristles not modelled), ``f_c``
+    learned where ``told.learn`` names it. A move rules out the candidates that cannot make
+    it, the first readings those that fit them worst (a chi-square); the pulse is planned
+    on every candidate left.
+    """
+
+    def __init__(self, params: dict[str, float], told: Model) -> None:
+        if told.band or not told.learn:
+            raise ValueError("the one-pulse model's planner learns, not told the band")
+        super().__init__(params, told)
+        self.alive = []  # the candidates are those of ``evidence``
+        self.evidence = TableEvidence({name: GRIDS[name] for name in told.learn},
+                                      self.model_params, T)
+
+    @property
+    def tables(self) -> Candidates:
+        """The candidate tables."""
+        return self.evidence.tables
+
+    def corner(self) -> Plant:
+        """The planner's plant (unused: the candidates are planned on the one-pulse
+        model)."""
+        return self.model
+
+    def sift(self, state: dict, height: float, first: float, d: float, moved: bool) -> None:
+        """Keep the candidates that explain a move; note a pulse that held."""
+        sign = math.copysign(1.0, height)
+        if moved:
+            # (without the first reading, no residual of it counts)
+            self.evidence.observe_move(
+                height, sign * first, sign * d,
+                self.slack_first / Z_NOISE if self.first else math.inf, self.slack_d / Z_NOISE)
+        else:
+            self.evidence.observe_held(height)
+
+    def plan_open(self, state: dict, e: float) -> float:
+        """The lowest height (N, along e) the candidates left plan, each for its lowest
+        breakaway still possible."""
+        return math.copysign(self.evidence.plan(abs(e), F_P_MAX)[0], e)
+
+
 def beyond(record: Sequence[tuple[float, float]], far: bool) -> tuple[int, int, float]:
     """Of the pulses of ``record`` ((e, d) in m) that moved, fired at ``|e| >= 1 um`` (``far``)
     or below: how many, how many moved beyond the runaway bound ``1.5*|e|`` plus one count,
@@ -507,7 +561,7 @@ def beyond(record: Sequence[tuple[float, float]], far: bool) -> tuple[int, int, 
 
 def approach(params: dict[str, float], told: Model) -> Approach:
     """:meth:`Approach.run` from ``E0`` within ``BUDGET`` (a worker's task)."""
-    return Approach(params, told).run()
+    return (FastApproach if told.fast else Approach)(params, told).run()
 
 
 def rows(text: str) -> tuple[int, ...]:
