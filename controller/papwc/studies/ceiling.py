@@ -34,9 +34,9 @@ must learn for them. The last rows learn the lag and v_s from the pulses, the la
 told where the breakaway is drawn either (:class:`Approach`), from the moves alone or from the
 first reading after each pulse as well: what a controller must read to learn them. (The
 planner's simulations start from the table's state at rest, as every row's do: the ripple's
-phase there is known to it.) The last three rows do the same on the one-pulse model of
-:mod:`papwc.studies.one_pulse` (:class:`FastApproach`), ``f_c`` learned too in the last two,
-the last through the table's encoder.
+phase there is known to it.) Rows 17-20 do the same on the one-pulse model of
+:mod:`papwc.studies.one_pulse` (:class:`FastApproach`), ``f_c`` learned too in rows 18 and
+19, rows 19 and 20 through the table's encoder.
 
 Run ``python -m papwc.studies.ceiling [--tables N] [--rows K,L,...]`` (N: at most that many
 tables of each file; K, L: the rows of :data:`MODELS` by number from 1); it prints one line
@@ -150,6 +150,8 @@ MODELS = (
           fast=True),
     Model("the same, through the table's encoder", learn=("tau_u", "v_s", "f_c"), band=False,
           first=True, encoder=True, fast=True),
+    Model("the lag and v_s learned on the one-pulse model, f_c told, through the table's "
+          "encoder", learn=("tau_u", "v_s"), band=False, first=True, encoder=True, fast=True),
 )
 #: What a planner learns a field over: values from the one under which a pulse moves the
 #: table farthest (no lag; friction falling off at the lowest speed) to the least far,
