@@ -44,17 +44,37 @@ is among them and breaks away higher, the pulse moves it less.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
 import numpy as np
 
 __all__ = ["CONSISTENT", "FIELDS", "FRESH_MARGIN", "FRESH_MOVES", "HALVINGS", "HORIZON",
            "MISFIT_LEFT", "STEPS_PULSE", "STEPS_T", "Z_REACH", "Candidates", "TableEvidence",
-           "one_pulse"]
+           "halve_each", "lag_share", "one_pulse"]
 
 #: Steps from the breakaway to the end of the pulse's sample, and steps a sample after it.
 STEPS_PULSE = 30
 STEPS_T = 50
+
+
+def lag_share(tau_u: np.ndarray, t: np.ndarray | float) -> np.ndarray:
+    """``f_a(t)/u`` for a force ``u`` asked from ``t = 0`` (s) through the lag ``tau_u`` (s):
+    ``1 - exp(-t/tau_u)``, 1 without lag."""
+    lagged = tau_u > 0.0
+    return np.where(lagged, -np.expm1(-t / np.where(lagged, tau_u, 1.0)), 1.0)
+
+
+def halve_each(inside: Callable[[np.ndarray], np.ndarray], lo: np.ndarray, hi: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray]:
+    """``HALVINGS`` halvings of each bracket ``[lo, hi]``, keeping ``lo`` where ``inside``
+    holds and ``hi`` where it does not; the brackets left (the vectorized
+    :func:`papwc.studies.ceiling.halve`)."""
+    for _ in range(HALVINGS):
+        mid = 0.5 * (lo + hi)
+        holds = inside(mid)
+        lo = np.where(holds, mid, lo)
+        hi = np.where(holds, hi, mid)
+    return lo, hi
 
 
 def one_pulse(u: np.ndarray | float, f_b: np.ndarray | float, tau_u: np.ndarray | float,
@@ -95,7 +115,7 @@ def one_pulse(u: np.ndarray | float, f_b: np.ndarray | float, tau_u: np.ndarray 
     push = np.abs(u)
     lagged = tau_u > 0.0
     tau = np.where(lagged, tau_u, 1.0)
-    rise = np.where(lagged, -np.expm1(-T / tau), 1.0)  # f_a(T)/u
+    rise = lag_share(tau_u, T)  # f_a(T)/u
     moves = push * rise > f_b
     # breakaway time (0 without lag): f_a(t_0) = f_b
     ratio = np.where(moves, f_b / np.where(push > 0.0, push, 1.0), 0.0)
@@ -105,7 +125,7 @@ def one_pulse(u: np.ndarray | float, f_b: np.ndarray | float, tau_u: np.ndarray 
 
     def force(t: np.ndarray) -> np.ndarray:
         after = t >= T
-        during = push * np.where(lagged, -np.expm1(-np.minimum(t, T) / tau), 1.0)
+        during = push * lag_share(tau_u, np.minimum(t, T))
         decay = np.where(lagged, np.exp(-np.maximum(t - T, 0.0) / tau), 0.0)
         return np.where(after, push * rise * decay, during)
 
@@ -221,35 +241,26 @@ class Candidates:
         """The breakaway (N, between ``f_c`` and ``|u|``) at which one sample ``u`` moves
         each candidate of ``which`` by ``d`` (m): a higher breakaway moves it less."""
         sign = math.copysign(1.0, u)
-        lo = self.values["f_c"][which].copy()
-        hi = np.maximum(abs(u), lo)
-        for _ in range(HALVINGS):
-            mid = 0.5 * (lo + hi)
-            farther = sign * self.moves(u, mid, which)[1] > sign * d
-            lo = np.where(farther, mid, lo)
-            hi = np.where(farther, hi, mid)
+        lo = self.values["f_c"][which]
+        lo, hi = halve_each(lambda f_b: sign * self.moves(u, f_b, which)[1] > sign * d,
+                            lo, np.maximum(abs(u), lo))
         return 0.5 * (lo + hi)
 
     def held(self, u: float, which: np.ndarray) -> np.ndarray:
         """The least breakaway (N) at which one sample ``u`` leaves each candidate of
         ``which`` at rest: the force the lag lets through by the sample's end, at least
         ``f_c``."""
-        tau = self.values["tau_u"][which]
-        rise = np.where(tau > 0.0, -np.expm1(-self.T / np.where(tau > 0.0, tau, 1.0)), 1.0)
+        rise = lag_share(self.values["tau_u"][which], self.T)
         return np.maximum(abs(u) * rise, self.values["f_c"][which])
 
     def plan(self, e: float, f_b: np.ndarray, which: np.ndarray, f_max: float) -> np.ndarray:
         """The highest one-sample force (N, along ``e``, at most ``f_max``) that moves each
         candidate of ``which`` by at most ``|e|`` (m) with the breakaway at ``f_b`` (N)."""
         sign = math.copysign(1.0, e)
-        lo = np.zeros(len(which))
         hi = np.full(len(which), f_max)
         top = self.moves(sign * hi, f_b, which)[1] * sign <= abs(e)
-        for _ in range(HALVINGS):
-            mid = 0.5 * (lo + hi)
-            short = sign * self.moves(sign * mid, f_b, which)[1] <= abs(e)
-            lo = np.where(short, mid, lo)
-            hi = np.where(short, hi, mid)
+        lo, _ = halve_each(lambda h: sign * self.moves(sign * h, f_b, which)[1] <= abs(e),
+                           np.zeros(len(which)), hi)
         return sign * np.where(top, f_max, lo)
 
 
