@@ -35,8 +35,10 @@ told where the breakaway is drawn either (:class:`Approach`), from the moves alo
 first reading after each pulse as well: what a controller must read to learn them. (The
 planner's simulations start from the table's state at rest, as every row's do: the ripple's
 phase there is known to it.) Rows 17-20 do the same on the one-pulse model of
-:mod:`papwc.studies.one_pulse` (:class:`FastApproach`), ``f_c`` learned too in rows 18 and
-19, rows 19 and 20 through the table's encoder.
+:mod:`papwc.studies.one_pulse` (:class:`FastApproach`), ``f_c`` learned too in rows 18,
+19 and 21, rows 19-21 through the table's encoder; row 21 learns ``f_c`` within the band the
+exact-model controller's slides after its wide pulses leave on the table
+(:func:`papwc.studies.sliding.f_c_band`).
 
 Run ``python -m papwc.studies.ceiling [--tables N] [--rows K,L,...]`` (N: at most that many
 tables of each file; K, L: the rows of :data:`MODELS` by number from 1); it prints one line
@@ -63,6 +65,7 @@ from papwc.model.plant import plant_problems
 from papwc.resources import scenario_file
 from papwc.studies.counts import MOVED
 from papwc.studies.one_pulse import CONSISTENT, FRESH_MARGIN, FRESH_MOVES, Candidates, TableEvidence
+from papwc.studies.sliding import f_c_band
 
 __all__ = ["BUDGET", "E0", "MODELS", "Approach", "FastApproach", "Model", "approach", "beyond",
            "halve", "main", "pulse", "pulse_path", "rows", "tables"]
@@ -101,7 +104,9 @@ class Model(NamedTuple):
     after the pulse's sample), and keeps only the candidates that explain that reading too.
     With ``encoder`` it reads the table through its encoder (resolution and noise, both
     told) instead of its true position (:meth:`Approach.run`). With ``fast`` its candidates
-    are tables of the one-pulse model (:class:`FastApproach`)."""
+    are tables of the one-pulse model (:class:`FastApproach`); with ``slid`` too, their
+    ``f_c`` lies within the band the slides of the exact-model controller's wide pulses
+    leave on the table (:func:`papwc.studies.sliding.f_c_band`)."""
 
     label: str
     told: dict[str, float] = {}
@@ -113,6 +118,7 @@ class Model(NamedTuple):
     first: bool = False
     encoder: bool = False
     fast: bool = False
+    slid: bool = False
 
     def params(self, table: dict[str, float]) -> dict[str, float]:
         """The model's plant parameters for the table's."""
@@ -152,6 +158,10 @@ MODELS = (
           first=True, encoder=True, fast=True),
     Model("the lag and v_s learned on the one-pulse model, f_c told, through the table's "
           "encoder", learn=("tau_u", "v_s"), band=False, first=True, encoder=True, fast=True),
+    Model("the lag, v_s and f_c learned on the one-pulse model, f_c within the band the "
+          "controller's slides leave, through the table's encoder",
+          learn=("tau_u", "v_s", "f_c"), band=False, first=True, encoder=True, fast=True,
+          slid=True),
 )
 #: What a planner learns a field over: values from the one under which a pulse moves the
 #: table farthest (no lag; friction falling off at the lowest speed) to the least far,
@@ -522,8 +532,13 @@ class FastApproach(Approach):
             raise ValueError("the one-pulse model's planner learns, not told the band")
         super().__init__(params, told)
         self.alive = []  # the candidates are those of ``evidence``
-        self.evidence = TableEvidence({name: GRIDS[name] for name in told.learn},
-                                      self.model_params, T)
+        grids = {name: GRIDS[name] for name in told.learn}
+        if told.slid:
+            # f_c within the band the exact-model controller's slides leave on this table
+            lo, hi = f_c_band(params)
+            grids["f_c"] = tuple(f for f in grids["f_c"] if lo <= f <= hi) or (
+                min(grids["f_c"], key=lambda f: abs(f - 0.5 * (lo + hi))),)
+        self.evidence = TableEvidence(grids, self.model_params, T)
 
     @property
     def tables(self) -> Candidates:
