@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import statistics
 
 import pytest
 
@@ -73,3 +74,17 @@ def test_a_slide_too_short_is_not_fitted():
     assert math.isfinite(f_c) and math.isfinite(rms) and rms >= 0.0
     assert sliding.C_GRID[0] / sliding.C_STEP <= c <= sliding.C_GRID[-1] * sliding.C_STEP
     assert tau_u in sliding.TAU_GRID
+
+
+def test_the_controllers_slides_bound_the_sliding_friction():
+    # the exact-model controller's first 10 mm and 1 mm moves on a table with a lag, read
+    # through a noisy encoder: the band holds the table's f_c and is narrower than the
+    # ceiling study's grid of it (60-130 N)
+    params = {**TABLE, "tau_u": 3e-3, "f_s_spread": 0.1, "x_resolution": 1e-7,
+              "noise_std": 3e-7, "seed": 5}
+    found = sliding.controller_slides(params)
+    assert len(found) >= 2
+    lo, hi = sliding.f_c_band(params)
+    f_cs = [f for _, _, f, *_ in found]
+    assert lo == pytest.approx(min(f_cs) - sliding.BAND * statistics.median(f_cs))
+    assert lo < 100.0 < hi and hi - lo < 40.0
