@@ -10,6 +10,7 @@ import pytest
 from papwc.model.dynamics import Plant
 from papwc.studies import ceiling
 from papwc.studies.one_pulse import FRESH_MOVES, Candidates, TableEvidence, one_pulse
+from papwc.studies.sliding import f_c_band
 
 T = ceiling.T
 HORIZON = ceiling.CYCLE
@@ -173,3 +174,14 @@ def test_learning_f_c_too_the_first_reading_keeps_the_table_and_rules_out_no_lag
 def test_the_one_pulse_planner_is_not_told_the_band():
     with pytest.raises(ValueError, match="not told the band"):
         ceiling.FastApproach(TABLE, ceiling.MODELS[0])
+
+
+def test_the_slides_band_narrows_the_candidates_f_c():
+    # row 21: the candidates' f_c within the band the exact-model controller's slides leave
+    told = ceiling.MODELS[20]
+    assert told.slid and "f_c" in told.learn
+    params = {**TABLE, "tau_u": 2e-3, "x_resolution": 1e-7, "noise_std": 2e-7}
+    lo, hi = f_c_band(params)
+    f_c = set(ceiling.FastApproach(params, told).tables.values["f_c"].tolist())
+    assert f_c == {f for f in ceiling.GRIDS["f_c"] if lo <= f <= hi}
+    assert 100.0 in f_c and 60.0 not in f_c
