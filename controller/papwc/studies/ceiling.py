@@ -25,18 +25,20 @@ it through the table's encoder instead). From rest at ``E0`` from the target it 
 
 This is the policy the issue on controllers from parts names, with the model in place of what
 the exact-model controller learns. For each model it prints, over the distinct rigid tables,
-how many reached 1 um within ``BUDGET`` s, the median time, the pulses, how many of the
-pulses that moved at ``|e| >= 1 um`` and below went beyond ``1.5*|e|`` plus one count (the
-runaway bound of R4 and R5) with the largest such move, and the processor time a pulse took
-(the planning's simulations and the table's step). The rows say whether R1 and R4 are
-within reach of the policy on these tables, and which of the table's parameters a controller
-must learn for them. The last rows learn the lag and v_s from the pulses, the last three not
-told where the breakaway is drawn either (:class:`Approach`), from the moves alone or from the
-first reading after each pulse as well: what a controller must read to learn them. (The
-planner's simulations start from the table's state at rest, as every row's do: the ripple's
-phase there is known to it.) Rows 17-20 do the same on the one-pulse model of
-:mod:`papwc.studies.one_pulse` (:class:`FastApproach`), ``f_c`` learned too in rows 18,
-19 and 21, rows 19-21 through the table's encoder; row 21 learns ``f_c`` within the band the
+how many reached 1 um within ``BUDGET`` s, the median time, the pulses, how many of the pulses
+that moved at ``|e| >= 1 um`` and below went beyond ``1.5*|e|`` plus one count (the runaway
+bound of R4 and R5) with the largest such move, and the processor time a pulse took (the
+planning's simulations and the table's step); for the rows that do not see every move (through
+the encoder, or moves up to ``MOVED``), how many pulses it took for held had moved the table,
+and how many runaways at ``|e| >= 1 um`` came after such a pulse on their stick. The rows say
+whether R1 and R4 are within reach of the policy on these tables, and which of the table's
+parameters a controller must learn for them. The last rows learn the lag and v_s from the
+pulses, the last three not told where the breakaway is drawn either (:class:`Approach`), from
+the moves alone or from the first reading after each pulse as well: what a controller must read
+to learn them. (The planner's simulations start from the table's state at rest, as every row's
+do: the ripple's phase there is known to it.) Rows 17-21 do the same on the one-pulse model of
+:mod:`papwc.studies.one_pulse` (:class:`FastApproach`), ``f_c`` learned too in rows 18, 19 and
+21, rows 19-21 through the table's encoder; row 21 learns ``f_c`` within the band the
 exact-model controller's slides after its wide pulses leave on the table
 (:func:`papwc.studies.sliding.f_c_band`).
 
@@ -314,6 +316,12 @@ class Approach:
         self.error = math.inf
         #: Each pulse: the error before it and its move, m.
         self.record: list[tuple[float, float]] = []
+        #: Each pulse: whether, since the planner last saw the table move, a pulse it took
+        #: for one that held had moved the table (unseen: the proofs of the present stick no
+        #: longer held); and how many pulses it took for held, how many of those had moved it.
+        self.unseen_before: list[bool] = []
+        self.taken_held = 0
+        self.moved_unseen = 0
 
     @property
     def pulses(self) -> int:
@@ -474,6 +482,7 @@ class Approach:
         rest = statistics.fmean(readings[-REST_READS:])
         target = table.x + e0
         breakaway = self.lowest
+        unseen = False
         while self.time + CYCLE <= budget + 1e-12:
             e = target - table.x
             seen = target - rest if self.encoder else e
@@ -494,6 +503,7 @@ class Approach:
             first, d = pulse_path(table, height, readings)
             self.time += CYCLE
             self.record.append((e, d))
+            self.unseen_before.append(unseen)
             if readings is not None:
                 before, rest = rest, statistics.fmean(readings[-REST_READS:])
                 first, d_seen = readings[0] - before, rest - before
@@ -503,6 +513,13 @@ class Approach:
                 moved = (abs(d) > self.unseen if self.unseen else
                          (d != 0.0 or table.stick_draws != draws))
             self.sift(state, height, first, d_seen, moved)
+            if moved:
+                unseen = False
+            else:
+                self.taken_held += 1
+                if d != 0.0:
+                    self.moved_unseen += 1
+                    unseen = True
             self.corner()
             if moved:
                 breakaway = self.lowest
@@ -630,11 +647,21 @@ def main(argv: Sequence[str] | None = None) -> None:
                     moving, out, largest = beyond(record, far)
                     runaways.append(f"{out}/{moving}" + (f" (largest {largest * 1e6:.1f} um)"
                                                          if out else ""))
+                unseen = ""
+                if told.encoder or told.unseen:
+                    after = sum(1 for a in done
+                                for (e, d), broken in zip(a.record, a.unseen_before, strict=True)
+                                if broken and abs(e) >= 1e-6 and d != 0.0
+                                and abs(d) > 1.5 * abs(e) + COUNT)
+                    unseen = (f"; taken for held {sum(a.taken_held for a in done)} pulses, "
+                              f"{sum(a.moved_unseen for a in done)} of them moved the table; "
+                              f"runaways at |e| >= 1 um after such a pulse on the same stick "
+                              f"{after}")
                 print(f"{name}, {told.label}: within 1 um {reached}/{len(done)}, median "
                       f"{median}, {len(record)} pulses, runaways at |e| >= 1 um "
                       f"{runaways[0]}, below {runaways[1]}; "
                       f"{1e3 * sum(a.cpu for a in done) / max(len(record), 1):.0f} ms "
-                      "of processor time a pulse")
+                      f"of processor time a pulse{unseen}")
 
 
 if __name__ == "__main__":
