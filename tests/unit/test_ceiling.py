@@ -95,7 +95,7 @@ def test_a_creep_not_seen_breaks_the_proof_and_the_guard_keeps_the_bound():
     assert 1 <= unseen.moved_unseen <= unseen.taken_held
     runaways = [broken for (e, d), broken
                 in zip(unseen.record, unseen.unseen_before, strict=True)
-                if abs(e) >= 1e-6 and d != 0.0 and abs(d) > 1.5 * abs(e) + ceiling.COUNT]
+                if abs(e) >= 1e-6 and ceiling.runaway(e, d)]
     assert runaways and all(runaways)
     assert seen.moved_unseen == 0 and not any(seen.unseen_before)
     # guarded, no pulse passes the bound, and this approach still ends within 1 um

@@ -70,7 +70,7 @@ from papwc.studies.one_pulse import CONSISTENT, FRESH_MARGIN, FRESH_MOVES, Candi
 from papwc.studies.sliding import f_c_band
 
 __all__ = ["BUDGET", "E0", "MODELS", "Approach", "FastApproach", "Model", "approach", "beyond",
-           "halve", "main", "pulse", "pulse_path", "rows", "tables"]
+           "halve", "main", "pulse", "pulse_path", "rows", "runaway", "tables"]
 
 #: Scenario files whose rigid draws are the tables.
 FILES = ("realism_mc_fresh.toml", "realism_mc_lugre_fresh.toml")
@@ -584,12 +584,18 @@ class FastApproach(Approach):
         return math.copysign(self.evidence.plan(abs(e), F_P_MAX)[0], e)
 
 
+def runaway(e: float, d: float) -> bool:
+    """Whether a pulse fired at the error e moved the table d (both m) beyond the runaway
+    bound ``1.5*|e|`` plus one count."""
+    return abs(d) > 1.5 * abs(e) + COUNT
+
+
 def beyond(record: Sequence[tuple[float, float]], far: bool) -> tuple[int, int, float]:
     """Of the pulses of ``record`` ((e, d) in m) that moved, fired at ``|e| >= 1 um`` (``far``)
-    or below: how many, how many moved beyond the runaway bound ``1.5*|e|`` plus one count,
-    and the largest move of those (m, 0: none)."""
+    or below: how many, how many moved beyond the runaway bound (:func:`runaway`), and the
+    largest move of those (m, 0: none)."""
     moving = [(e, d) for e, d in record if d != 0.0 and (abs(e) >= 1e-6) == far]
-    out = [abs(d) for e, d in moving if abs(d) > 1.5 * abs(e) + COUNT]
+    out = [abs(d) for e, d in moving if runaway(e, d)]
     return len(moving), len(out), max(out, default=0.0)
 
 
@@ -651,8 +657,7 @@ def main(argv: Sequence[str] | None = None) -> None:
                 if told.encoder or told.unseen:
                     after = sum(1 for a in done
                                 for (e, d), broken in zip(a.record, a.unseen_before, strict=True)
-                                if broken and abs(e) >= 1e-6 and d != 0.0
-                                and abs(d) > 1.5 * abs(e) + COUNT)
+                                if broken and abs(e) >= 1e-6 and runaway(e, d))
                     unseen = (f"; taken for held {sum(a.taken_held for a in done)} pulses, "
                               f"{sum(a.moved_unseen for a in done)} of them moved the table; "
                               f"runaways at |e| >= 1 um after such a pulse on the same stick "
