@@ -8,10 +8,10 @@ import statistics
 import pytest
 
 from papwc.model.dynamics import Plant
-from papwc.studies import sliding
+from papwc.studies import ceiling, sliding
 from papwc.studies.sliding import fit_slide, slides
 
-T = sliding.T
+T = ceiling.T
 #: A Monte Carlo table without ripple, noise or random stiction.
 TABLE = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0, "v_s": 2e-3}
 

@@ -29,16 +29,21 @@ the same tables without their friction ripple).
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import functools
 import math
 import statistics
 import sys
 import time
 from collections.abc import Sequence
+from typing import Any
 
 import numpy as np
 
-__all__ = ["BAND", "C_GRID", "D_MIN", "TAU_GRID", "controller_slides", "f_c_band", "fit_slide",
-           "slide_basis", "slides"]
+from papwc.studies.one_pulse import lag_share
+
+__all__ = ["BAND", "BATTERY", "C_GRID", "D_MIN", "TAU_GRID", "battery_exact", "controller_slides",
+           "f_c_band", "fit_slide", "slide_basis", "slides"]
 
 #: A step of the slide counts while it is at least this long (m a sample; 0.1 mm at 10 ms
 #: is 10 mm/s, where a Stribeck curve of up to 5 mm/s has let go of all but 2 % of its
@@ -51,9 +56,8 @@ C_GRID = tuple(100.0 * C_STEP**k for k in range(41))
 #: Golden-section steps refining the damping between the grid's neighbours of the best.
 C_REFINE = 20
 TAU_GRID = tuple(2.5e-4 * k for k in range(25))
-#: The period and the mass estimate of the batteries' controllers (s, kg).
-T = 0.01
-M_EST = 150.0
+#: The battery whose exact-model controller and maneuver make the slides.
+BATTERY = "realism_mc.toml"
 #: The band of f_c the slides leave is widened by this share of their median on each side.
 BAND = 0.1
 #: Readings of a slide needed for a fit (three unknowns, two grid coordinates).
@@ -87,7 +91,7 @@ def fit_slide(x: Sequence[float], u: float, n: int, T: float, m: float
     t = T * np.arange(len(x))
 
     def solve(c: float, tau_u: float) -> tuple[float, float]:
-        f_0 = u * (-math.expm1(-n * T / tau_u)) if tau_u > 0.0 else u
+        f_0 = u * float(lag_share(np.float64(tau_u), n * T))
         basis = slide_basis(t, c, tau_u, m)
         # the force's part is known: F_0 times its column
         rhs = x - f_0 * basis[:, 2]
@@ -143,24 +147,37 @@ def slides(x_meas: Sequence[float], u: Sequence[float], T: float, m: float
     return out
 
 
+@functools.cache
+def battery_exact() -> tuple[Any, Any]:
+    """The exact-model controller's settings and the maneuver of ``realism_mc.toml``'s rigid
+    runs (read once a process)."""
+    from papwc.battery.plan import plan_runs
+    from papwc.battery.schema import load_battery
+    from papwc.resources import scenario_file
+    from papwc.scenario import parse_scenario
+
+    path = scenario_file(BATTERY)
+    run = next(r for r in plan_runs([load_battery(path)]) if r.case == "rigid")
+    scenario = parse_scenario(run.data, f"{path} run {run.run_id}")
+    labels = list(scenario.labels)
+    return scenario.controllers[labels.index("exact")], scenario.maneuver
+
+
 def controller_slides(params: dict[str, float]) -> list[tuple[int, int, float, float, float,
                                                                  float]]:
     """:func:`slides` of the exact-model controller's first iterations toward 10 mm and 1 mm
-    (the settings of ``realism_mc.toml``, 2 s each) on the table of plant parameters
-    ``params``, the in-process plant read through its encoder."""
-    from papwc.controllers.settings import ControllerSettings
+    (its settings and maneuver period and length those of ``realism_mc.toml``) on the table
+    of plant parameters ``params``, the in-process plant read through its encoder."""
     from papwc.master import PhysicsSlave, run_controller
-    from papwc.master.closed_loop import Maneuver
 
-    settings = ControllerSettings(kind="exact", f_p_max=300.0, tolerance=1e-7, m_est=M_EST,
-                                  f_c_est=80.0, x_resolution=1e-7)
+    settings, maneuver = battery_exact()
     found = []
     for x_ref in (1e-2, 1e-3):
         plant = PhysicsSlave()
         plant.set_start_values(dict(params))
-        maneuver = Maneuver(x_ref=x_ref, T=T, duration=2.0, iterations=1)
-        trace = run_controller(plant, settings, maneuver).traces[0]
-        found += slides(trace.columns["x_meas"], trace.columns["u"], T, M_EST)
+        once = dataclasses.replace(maneuver, x_ref=x_ref, iterations=1)
+        trace = run_controller(plant, settings, once).traces[0]
+        found += slides(trace.columns["x_meas"], trace.columns["u"], once.T, settings.m_est)
     return found
 
 
