@@ -91,13 +91,13 @@ def test_a_creep_not_seen_breaks_the_proof_and_the_guard_keeps_the_bound():
     assert ceiling.beyond(unseen.record, True)[1] >= 1
     # and the approach counts it: each runaway at |e| >= 1 um came after a pulse taken for
     # held that had moved the table; seeing every move, no pulse is taken for held wrongly
-    assert len(unseen.unseen_before) == len(unseen.record)
+    assert len(unseen.broken_before) == len(unseen.record)
     assert 1 <= unseen.moved_unseen <= unseen.taken_held
     runaways = [broken for (e, d), broken
-                in zip(unseen.record, unseen.unseen_before, strict=True)
+                in zip(unseen.record, unseen.broken_before, strict=True)
                 if abs(e) >= 1e-6 and ceiling.runaway(e, d)]
     assert runaways and all(runaways)
-    assert seen.moved_unseen == 0 and not any(seen.unseen_before)
+    assert seen.moved_unseen == 0 and not any(seen.broken_before)
     # guarded, no pulse passes the bound, and this approach still ends within 1 um
     for far in (True, False):
         assert ceiling.beyond(guarded.record, far)[1] == 0

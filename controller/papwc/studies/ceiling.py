@@ -319,7 +319,7 @@ class Approach:
         #: Each pulse: whether, since the planner last saw the table move, a pulse it took
         #: for one that held had moved the table (unseen: the proofs of the present stick no
         #: longer held); and how many pulses it took for held, how many of those had moved it.
-        self.unseen_before: list[bool] = []
+        self.broken_before: list[bool] = []
         self.taken_held = 0
         self.moved_unseen = 0
 
@@ -482,7 +482,7 @@ class Approach:
         rest = statistics.fmean(readings[-REST_READS:])
         target = table.x + e0
         breakaway = self.lowest
-        unseen = False
+        broken = False
         while self.time + CYCLE <= budget + 1e-12:
             e = target - table.x
             seen = target - rest if self.encoder else e
@@ -503,7 +503,7 @@ class Approach:
             first, d = pulse_path(table, height, readings)
             self.time += CYCLE
             self.record.append((e, d))
-            self.unseen_before.append(unseen)
+            self.broken_before.append(broken)
             if readings is not None:
                 before, rest = rest, statistics.fmean(readings[-REST_READS:])
                 first, d_seen = readings[0] - before, rest - before
@@ -513,20 +513,19 @@ class Approach:
                 moved = (abs(d) > self.unseen if self.unseen else
                          (d != 0.0 or table.stick_draws != draws))
             self.sift(state, height, first, d_seen, moved)
-            if moved:
-                unseen = False
-            else:
-                self.taken_held += 1
-                if d != 0.0:
-                    self.moved_unseen += 1
-                    unseen = True
             self.corner()
             if moved:
+                broken = False
                 breakaway = self.lowest
                 self.moves.append((state, height, d_seen))
                 self.held = []
                 self._proofs.clear()
             else:
+                self.taken_held += 1
+                if d != 0.0:
+                    # taken for held, it moved the table: the proofs of this stick are broken
+                    self.moved_unseen += 1
+                    broken = True
                 self.held.append((state, height))
                 if self.band:
                     breakaway = self.proof(state, height, breakaway)
@@ -656,7 +655,7 @@ def main(argv: Sequence[str] | None = None) -> None:
                 unseen = ""
                 if told.encoder or told.unseen:
                     after = sum(1 for a in done
-                                for (e, d), broken in zip(a.record, a.unseen_before, strict=True)
+                                for (e, d), broken in zip(a.record, a.broken_before, strict=True)
                                 if broken and abs(e) >= 1e-6 and runaway(e, d))
                     unseen = (f"; taken for held {sum(a.taken_held for a in done)} pulses, "
                               f"{sum(a.moved_unseen for a in done)} of them moved the table; "
