@@ -226,4 +226,6 @@ def main(argv: Sequence[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    from papwc.exit_status import run_command
+
+    sys.exit(run_command("python -m papwc.studies.sliding", main))
