@@ -104,6 +104,26 @@ def test_a_creep_not_seen_breaks_the_proof_and_the_guard_keeps_the_bound():
     assert guarded.error <= 1e-6
 
 
+def test_through_its_encoder_the_known_table_is_reached_only_by_a_pulse_beyond_the_bound():
+    # table 11 of realism_mc_fresh.toml (0.13 um of noise on its 0.1 um encoder), the
+    # planner told the table: rows 22 and 23 of the study
+    table = ceiling.tables("realism_mc_fresh.toml")[10]
+    bet = ceiling.Approach(table, ceiling.MODELS[21]).run()
+    guarded = ceiling.Approach(table, ceiling.MODELS[22]).run()
+    assert ceiling.MODELS[21].encoder and not ceiling.MODELS[21].guard
+    assert ceiling.MODELS[22].encoder and ceiling.MODELS[22].guard
+    # climbing past the proofs of pulses it read as held reaches 1 um, but a creep the
+    # noise hid had redrawn the breakaway: a pulse at |e| >= 1 um went beyond the bound
+    assert bet.error <= 1e-6
+    runaways = [broken for (e, d), broken in zip(bet.record, bet.broken_before, strict=True)
+                if abs(e) >= 1e-6 and ceiling.runaway(e, d)]
+    assert runaways and all(runaways)
+    # never betting on a proof, no pulse passes the bound, and the table is not reached
+    for far in (True, False):
+        assert ceiling.beyond(guarded.record, far)[1] == 0
+    assert guarded.error > 1e-6
+
+
 def test_a_planner_learning_the_lag_keeps_the_table_among_its_candidates():
     learner = ceiling.Approach(LAG, ceiling.Model("lag learned", learn=("tau_u",)))
     assert len(learner.alive) == len(ceiling.GRIDS["tau_u"])

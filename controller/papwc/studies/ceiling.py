@@ -32,15 +32,16 @@ planning's simulations and the table's step); for the rows that do not see every
 the encoder, or moves up to ``MOVED``), how many pulses it took for held had moved the table,
 and how many runaways at ``|e| >= 1 um`` came after such a pulse on their stick. The rows say
 whether R1 and R4 are within reach of the policy on these tables, and which of the table's
-parameters a controller must learn for them. The last rows learn the lag and v_s from the
-pulses, the last three not told where the breakaway is drawn either (:class:`Approach`), from
-the moves alone or from the first reading after each pulse as well: what a controller must read
-to learn them. (The planner's simulations start from the table's state at rest, as every row's
+parameters a controller must learn for them. Rows 13-16 learn the lag and v_s from the
+pulses, the last three of them not told where the breakaway is drawn either (:class:`Approach`),
+from the moves alone or from the first reading after each pulse as well: what a controller must
+read to learn them. (The planner's simulations start from the table's state at rest, as every row's
 do: the ripple's phase there is known to it.) Rows 17-21 do the same on the one-pulse model of
 :mod:`papwc.studies.one_pulse` (:class:`FastApproach`), ``f_c`` learned too in rows 18, 19 and
 21, rows 19-21 through the table's encoder; row 21 learns ``f_c`` within the band the
 exact-model controller's slides after its wide pulses leave on the table
-(:func:`papwc.studies.sliding.f_c_band`).
+(:func:`papwc.studies.sliding.f_c_band`). Rows 22 and 23 are rows 2 and 3 through the
+table's encoder itself (its count and noise): the table told, unguarded and guarded.
 
 Run ``python -m papwc.studies.ceiling [--tables N] [--rows K,L,...]`` (N: at most that many
 tables of each file; K, L: the rows of :data:`MODELS` by number from 1); it prints one line
@@ -164,6 +165,8 @@ MODELS = (
           "controller's slides leave, through the table's encoder",
           learn=("tau_u", "v_s", "f_c"), band=False, first=True, encoder=True, fast=True,
           slid=True),
+    Model("the table, through the table's encoder", encoder=True),
+    Model("the table, through the table's encoder, guarded", encoder=True, guard=True),
 )
 #: What a planner learns a field over: values from the one under which a pulse moves the
 #: table farthest (no lag; friction falling off at the lowest speed) to the least far,
