@@ -197,3 +197,19 @@ def test_rows_are_numbers_of_the_models_each_once():
     with pytest.raises(SystemExit) as stop:
         ceiling.main(["--rows", "0"])
     assert stop.value.code == 2
+
+
+def test_files_are_the_monte_carlos_each_once(capsys):
+    assert ceiling.files("realism_mc.toml") == ("realism_mc.toml",)
+    assert ceiling.files(" realism_mc.toml, realism_mc_lugre_fresh.toml") == (
+        "realism_mc.toml", "realism_mc_lugre_fresh.toml")
+    for bad, said in (("paper.toml", "is not one of"), ("realism_mc.toml,realism_mc.toml",
+                                                         "twice"), ("", "is not one of")):
+        with pytest.raises(ceiling.argparse.ArgumentTypeError, match=said):
+            ceiling.files(bad)
+    with pytest.raises(SystemExit) as stop:
+        ceiling.main(["--files", "/etc/passwd"])
+    assert stop.value.code == 2
+    assert "--files" in capsys.readouterr().err
+    # every file it may name has rigid draws to approach
+    assert all(ceiling.tables(name) for name in ceiling.FILE_CHOICES)

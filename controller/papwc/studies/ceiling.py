@@ -43,9 +43,10 @@ exact-model controller's slides after its wide pulses leave on the table
 (:func:`papwc.studies.sliding.f_c_band`). Rows 22 and 23 are rows 2 and 3 through the
 table's encoder itself (its count and noise): the table told, unguarded and guarded.
 
-Run ``python -m papwc.studies.ceiling [--tables N] [--rows K,L,...]`` (N: at most that many
-tables of each file; K, L: the rows of :data:`MODELS` by number from 1); it prints one line
-per model and file.
+Run ``python -m papwc.studies.ceiling [--tables N] [--rows K,L,...] [--files A,B,...]`` (N: at
+most that many tables of each file; K, L: the rows of :data:`MODELS` by number from 1; A, B:
+the scenario files, by default :data:`FILES`, or the Monte Carlo's own, ``realism_mc.toml``
+and ``realism_mc_lugre.toml``); it prints one line per model and file.
 """
 
 from __future__ import annotations
@@ -70,11 +71,14 @@ from papwc.studies.counts import MOVED
 from papwc.studies.one_pulse import CONSISTENT, FRESH_MARGIN, FRESH_MOVES, Candidates, TableEvidence
 from papwc.studies.sliding import f_c_band
 
-__all__ = ["BUDGET", "E0", "MODELS", "Approach", "FastApproach", "Model", "approach", "beyond",
-           "halve", "main", "pulse", "pulse_path", "rows", "runaway", "tables"]
+__all__ = ["BUDGET", "E0", "FILE_CHOICES", "FILES", "MODELS", "Approach", "FastApproach", "Model",
+           "approach", "beyond", "files", "halve", "main", "pulse", "pulse_path", "rows",
+           "runaway", "tables"]
 
-#: Scenario files whose rigid draws are the tables.
+#: Scenario files whose rigid draws are the tables (by default), and those ``--files`` may name:
+#: the Monte Carlo's files, whose rigid draws are stick–slip or LuGre tables.
 FILES = ("realism_mc_fresh.toml", "realism_mc_lugre_fresh.toml")
+FILE_CHOICES = FILES + ("realism_mc.toml", "realism_mc_lugre.toml")
 #: Start: at rest this far from the target, m (the Monte Carlo's shortest maneuver).
 E0 = 5e-5
 #: Time the approach may take, s (the Monte Carlo's maneuvers).
@@ -615,12 +619,26 @@ def rows(text: str) -> tuple[int, ...]:
     return out
 
 
+def files(text: str) -> tuple[str, ...]:
+    """An argparse type: scenario files of :data:`FILE_CHOICES`, separated by commas."""
+    out = tuple(part.strip() for part in text.split(","))
+    for name in out:
+        if name not in FILE_CHOICES:
+            raise argparse.ArgumentTypeError(
+                f"{name!r} is not one of {', '.join(FILE_CHOICES)}")
+    if len(set(out)) != len(out):
+        raise argparse.ArgumentTypeError(f"{text!r} names a file twice")
+    return out
+
+
 def main(argv: Sequence[str] | None = None) -> None:
     """Print, per file and model, what the approaches reached.
 
     ``argv`` (default ``sys.argv[1:]``): ``--tables N`` (1 to ``TABLES_MAX``: at most N
     tables of each file, default all), ``--rows K,L,...`` (the models of :data:`MODELS`
-    by number from 1, default all, each once); anything else is refused (exit 2).
+    by number from 1, default all, each once), ``--files A,B,...`` (the scenario files whose
+    rigid draws are the tables, of :data:`FILE_CHOICES`, default :data:`FILES`); anything
+    else is refused (exit 2).
     """
     parser = argparse.ArgumentParser(
         prog="python -m papwc.studies.ceiling",
@@ -632,6 +650,10 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--rows", type=rows, default=tuple(range(1, len(MODELS) + 1)),
                         help=f"the models by number, 1 to {len(MODELS)}, separated by commas "
                              "(default all)")
+    parser.add_argument("--files", type=files, default=FILES,
+                        help="the scenario files whose rigid draws are the tables, separated "
+                             f"by commas: {', '.join(FILE_CHOICES)} (default "
+                             f"{','.join(FILES)})")
     args = parser.parse_args(argv)
     count = args.tables
     models = [MODELS[k - 1] for k in args.rows]
@@ -640,7 +662,7 @@ def main(argv: Sequence[str] | None = None) -> None:
           "position (through the table's encoder where its row says so)")
     workers = min(2, os.cpu_count() or 1)
     with ProcessPoolExecutor(workers) as pool:
-        for name in FILES:
+        for name in args.files:
             found = tables(name)[:count]
             for told in models:
                 if "f_s_spread" in told.told and not any(p.get("f_s_spread") for p in found):
