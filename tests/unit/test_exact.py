@@ -210,8 +210,11 @@ def test_exact_settings_are_normal_settings_of_the_table():
         assert getattr(defaults, name) == default
         assert name in settings_for_kind("exact")
         assert name not in settings_for_kind("papwc") and name not in settings_for_kind("pwc")
+    # and m_d_est, with which every pulse controller told a drive's mode bounds a pulse's slip
+    assert SETTINGS_BY_NAME["m_d_est"].kinds == ("pwc", "papwc", "exact", "dual_loop")
     assert set(settings_for_kind("exact")) == (
-        {v.name for v in CONTROLLER_SETTINGS if not v.kinds} | set(EXACT_SETTINGS))
+        {v.name for v in CONTROLLER_SETTINGS if not v.kinds} | set(EXACT_SETTINGS)
+        | {"m_d_est"})
     ctl = make_controller(_settings(history=3, max_pulses=7, f_s_tol=0.1, c_est=50.0,
                                     x_resolution=1e-6), T)
     assert ctl.estimator.size == 3 and ctl.max_pulses == 7 and ctl.f_s_tol == 0.1

@@ -9,12 +9,15 @@ from __future__ import annotations
 
 import pytest
 
+from papwc.battery.plan import plan_runs
+from papwc.battery.schema import load_battery
 from papwc.controllers import Outcome, make_controller
 from papwc.controllers.settings import ControllerSettings
 from papwc.master import Maneuver, PhysicsSlave
 from papwc.master.closed_loop import run_closed_loop
 from papwc.master.slave import ControllerSlave
 from papwc.model.controller_settings import F_MODE_MAX_T, MODE_PERIODS, settings_problems
+from papwc.resources import scenario_file
 from papwc.results.pulses import pulse_ratio, pulses_of
 from papwc.scenario import ScenarioError, load_scenario
 from papwc.studies.ring_scan import SETTINGS, TABLE_1  # the controllers of realism.toml
@@ -85,6 +88,37 @@ def test_an_unknown_mode_above_a_quarter_of_the_sample_rate_does_not_run_away(ki
             assert abs(x_ref - result.traces[-1].column("x")[-1]) <= tolerance + 1e-7
         elif controller.outcome == Outcome.STOPPED:
             assert controller.outcome_reason != 0
+
+
+# -- told the mode, no pulse that the spring could sling farther than the start -------------
+def _draw(name: str, run_id: str) -> dict:
+    """The plant of one run of a shipped battery."""
+    [run] = [r for r in plan_runs([load_battery(scenario_file(name))]) if r.run_id == run_id]
+    return dict(run.data["plant"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", sorted(SETTINGS))
+def test_told_its_mode_no_pulse_may_sling_the_table_farther_than_it_started(kind):
+    """A 50 um maneuver on a 20 Hz drive of realism_mc.toml (Stribeck, random stiction, a
+    lag, ripple, noise): its creeps are a few micrometres, but the spring can give a pulse's
+    work on the motor back to the table, and one pulse above them moved it 121 um (the
+    exact-model controller, before this bound). Told the mode, no pulse's move passes the
+    bound, and no maneuver ends farther than it started."""
+    plant = _draw("realism_mc.toml", "flexible_20hz-s4-d000")
+    assert plant["m_d"] == 50.0 and plant["f_s_spread"] > 0.0
+    controller, result = _run(plant, kind, 5e-5, f_mode=20.0)
+    seq = controller.seq
+    # the work of one sample on a 50 kg motor, over f_c_est (80 N)
+    assert seq.drive_slip(1, -147.0) == pytest.approx((147.0 * T) ** 2 / (2.0 * 50.0 * 80.0))
+    for trace in result.traces:
+        x = trace.column("x")
+        assert abs(5e-5 - x[-1]) <= abs(5e-5 - x[0]), trace.iteration
+        for p in pulses_of(trace):
+            assert abs(p.d) <= seq.drive_slip(p.samples, p.amplitude), p
+    # a machine not told its mode has no such bound
+    controller, _ = _run(RIGID, kind, 5e-5)
+    assert controller.seq.drive_slip(1, 147.0) == 0.0
 
 
 # -- a ringing rest waited out, one-sample pulses ---------------------------------------------

@@ -31,7 +31,8 @@ def _write(tmp_path: Path, text: str) -> Path:
 
 PAPWC_FIELDS = ("kind, f_p_max, t_p_max, K_c, tolerance, m_est, f_c_est, f_p_min, floor_raise, "
                 "delta_inv, lambda, regressor, update_covariance, floor_mode, e_band, k_p, k_d, "
-                "rest_samples, rest_band, max_pulses, safeguards, rest_auto, f_mode, label")
+                "rest_samples, rest_band, max_pulses, safeguards, rest_auto, f_mode, m_d_est, "
+                "label")
 
 
 @pytest.mark.parametrize(

@@ -37,7 +37,9 @@ With ``safeguards`` (the default) the sequencer stops a maneuver after
 ``reach``: its model's prediction, or what its evidence says where that knows better)
 would leave the mass farther from the target than the maneuver started, even if it
 moves 1/trust times that (:class:`~.trust.TrustRegion`, which judges the model's
-prediction).
+prediction). On a drive told its mode it also fires none that could leave the table
+farther than the maneuver started should the spring give the table all the work the pulse
+did on the motor (:meth:`PulseSequencer.drive_slip`, with ``m_d_est`` and ``f_c_est``).
 
 On a machine with a mode, told (``f_mode`` > 0) or seen ringing (a mode the settings did
 not name, see :mod:`.rest`), a pulse's move depends on the ringing it meets more than on
@@ -171,6 +173,7 @@ class PulseSequencer:
         self.f_p_max = s.f_p_max
         self.f_c_est = s.f_c_est
         self.m_est = s.m_est
+        self.m_d_est = float(s.m_d_est)
         self.k_p = s.k_p_value
         self.k_d = s.k_d_value
         self.guarded = bool(s.safeguards)
@@ -358,7 +361,8 @@ class PulseSequencer:
         if self.guarded and self.flexible():
             n, f_p = self._ringing_pulse(e, f_p)
         pred = law.predict(n, f_p)
-        if self.guarded and self.may_end_farther(e, f_p, law.reach(n, f_p)):
+        if self.guarded and (self.may_end_farther(e, f_p, law.reach(n, f_p))
+                             or self.may_slip_farther(e, n, f_p)):
             return self.stop(Reason.NO_MOVE_HELPS)
         return self.fire(n, f_p, pred, x_hat)
 
@@ -370,6 +374,32 @@ class PulseSequencer:
             return False
         step = math.copysign(pred, f_p)
         after = max(abs(e - step), abs(e - step / max(self.trust(), TRUST_MIN)))
+        return after > abs(self.e0) and after > abs(e)
+
+    def drive_slip(self, n: int, f_p: float) -> float:
+        """Farthest a pulse of n samples at f_p (N) can move the table of a drive told its
+        mode, m: ``(f_p*n*T)**2/(2*m_d_est*f_c_est)`` (0 on a machine not told one).
+
+        The force does at most the work it would do on the motor alone, ``(f_p*n*T)**2/
+        (2*m_d_est)`` (the spring only holds the motor back while the table sticks, the drive
+        at rest before the pulse), and the spring gives that back to the table when it breaks
+        away: a sliding friction of at least ``f_c_est`` then stops the table within that work
+        over ``f_c_est`` (the drive's damping takes its share too). A drive still ringing
+        from the last slip holds a few newtons more, a small part of it.
+        """
+        if not self.trust.flexible or not self.m_d_est > 0.0 or not self.f_c_est > 0.0:
+            return 0.0
+        work = (f_p * n * self.T) ** 2 / (2.0 * self.m_d_est)
+        return work / self.f_c_est
+
+    def may_slip_farther(self, e: float, n: int, f_p: float) -> bool:
+        """Whether a pulse of n samples at f_p (N) may leave the table of a drive told its
+        mode farther than the maneuver started (and than now, error e m), should the spring
+        sling it the whole :meth:`drive_slip`: the sequencer does not fire it."""
+        slip = self.drive_slip(n, f_p)
+        if not slip > 0.0:
+            return False
+        after = abs(e - math.copysign(slip, f_p))
         return after > abs(self.e0) and after > abs(e)
 
     def _ringing_pulse(self, e: float, f_p: float) -> tuple[int, float]:

@@ -160,8 +160,11 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              "on the other side of the target than the last one", "", 4, type="Integer",
              min=1, max=1_000_000, kinds=("pid",)),
     Variable("m_d_est", "Motor mass of the flexible drive (the mode f_mode is that of the "
-             "motor on the coupling against the stuck table: k_t = m_d_est*(2*pi*f_mode)**2)",
-             "kg", 50.0, min=1e-6, max=1e9, nominal=10.0, kinds=("dual_loop",)),
+             "motor on the coupling against the stuck table: k_t = m_d_est*(2*pi*f_mode)**2); "
+             "told f_mode, a pulse controller fires no pulse whose work on a motor of this "
+             "mass, given back by the spring, could sling the table farther than the maneuver "
+             "started", "kg", 50.0, min=1e-6, max=1e9, nominal=10.0,
+             kinds=("pwc", "papwc", "exact", "dual_loop")),
     Variable("c_t_est", "Damping of the motor-table coupling the motor loop is designed with",
              "N.s/m", 0.0, min=0.0, max=1e9, nominal=100.0, kinds=("dual_loop",)),
     Variable("f_relax", "Largest force amplitude of the drive's ringing, k_t*sqrt(delta**2 + "
