@@ -373,7 +373,11 @@ class PulseSequencer:
         if not math.isfinite(pred):
             return False
         step = math.copysign(pred, f_p)
-        after = max(abs(e - step), abs(e - step / max(self.trust(), TRUST_MIN)))
+        return self._farther(e, max(abs(e - step), abs(e - step / max(self.trust(), TRUST_MIN))))
+
+    def _farther(self, e: float, after: float) -> bool:
+        """Whether an error of ``after`` (m) left by a pulse fired at the error e (m) is
+        farther than the maneuver started and than now."""
         return after > abs(self.e0) and after > abs(e)
 
     def drive_slip(self, n: int, f_p: float) -> float:
@@ -397,10 +401,7 @@ class PulseSequencer:
         mode farther than the maneuver started (and than now, error e m), should the spring
         sling it the whole :meth:`drive_slip`: the sequencer does not fire it."""
         slip = self.drive_slip(n, f_p)
-        if not slip > 0.0:
-            return False
-        after = abs(e - math.copysign(slip, f_p))
-        return after > abs(self.e0) and after > abs(e)
+        return slip > 0.0 and self._farther(e, abs(e - math.copysign(slip, f_p)))
 
     def _ringing_pulse(self, e: float, f_p: float) -> tuple[int, float]:
         """The pulse on a machine seen ringing: one sample; at ``f_low`` once a sample has
