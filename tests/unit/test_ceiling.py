@@ -213,3 +213,46 @@ def test_files_are_the_monte_carlos_each_once(capsys):
     assert "--files" in capsys.readouterr().err
     # every file it may name has rigid draws to approach
     assert all(ceiling.tables(name) for name in ceiling.FILE_CHOICES)
+
+
+def test_the_identified_row_is_told_what_identify_finds(monkeypatch):
+    import papwc.identify.excitation as excitation
+    import papwc.identify.fit as fit
+
+    class Found:
+        def __init__(self, name, value):
+            self.name, self.value = name, value
+
+    class Identification:
+        # the Stribeck curve chosen, the lag not (and a field the planner is not told)
+        estimates = [Found("m", 149.0), Found("f_c", 97.0), Found("c", 720.0),
+                     Found("v_s", 3e-3), Found("f_s", 131.0)]
+
+    logs = []
+    monkeypatch.setattr(excitation, "design", lambda h, f_p_max, travel, duration: (
+        h, f_p_max, travel, duration))
+    monkeypatch.setattr(excitation, "apply_to_plant", lambda u, h, params: logs.append(
+        (u, h, params)) or "log")
+    monkeypatch.setattr(fit, "identify", lambda log: Identification)
+    told = ceiling.identified(LAG)
+    assert told == {"m": 149.0, "f_c": 97.0, "c": 720.0, "v_s": 3e-3, "tau_u": 0.0}
+    # the log: the design's defaults applied to the table itself
+    assert logs == [((ceiling.T, ceiling.F_P_MAX, ceiling.IDENTIFY_TRAVEL, ceiling.IDENTIFY_S),
+                     ceiling.T, LAG)]
+
+    # the row's approach plans on those values (and no ripple), the table stepped as it is
+    seen = []
+    monkeypatch.setattr(ceiling, "identified", lambda params: seen.append(params) or told)
+    row = next(m for m in ceiling.MODELS if m.identified)
+    done = ceiling.approach({**LAG, "ripple": 0.05, "ripple_period": 2e-3}, row)
+    assert seen and seen[0]["ripple"] == 0.05
+    assert {k: done.model_params[k] for k in told} == told
+    assert done.model_params["ripple"] == 0.0 and done.table.ripple is not None
+    assert done.model.ripple is None
+
+
+def test_the_identified_row_is_not_run_on_lugre_tables(capsys):
+    row = 1 + next(i for i, m in enumerate(ceiling.MODELS) if m.identified)
+    ceiling.main(["--rows", str(row), "--files", "realism_mc_lugre.toml", "--tables", "1"])
+    out = capsys.readouterr().out
+    assert out.startswith("from rest") and "realism_mc_lugre.toml" not in out

@@ -41,7 +41,12 @@ do: the ripple's phase there is known to it.) Rows 17-21 do the same on the one-
 21, rows 19-21 through the table's encoder; row 21 learns ``f_c`` within the band the
 exact-model controller's slides after its wide pulses leave on the table
 (:func:`papwc.studies.sliding.f_c_band`). Rows 22 and 23 are rows 2 and 3 through the
-table's encoder itself (its count and noise): the table told, unguarded and guarded.
+table's encoder itself (its count and noise): the table told, unguarded and guarded. Rows
+24-26, through the encoder too, are not told where the breakaway is drawn (they take a fresh
+stick's lowest breakaway from the moves, as the exact-model controller does): told the rest of
+the table (24); told what ``papwc identify`` fits, the mass, the friction, the damping, the lag
+and the Stribeck curve, and no ripple (25); told what it finds on a 60 s log of the table
+(26: :func:`identified`, about 2 min a table; not on LuGre tables, which it does not model).
 
 Run ``python -m papwc.studies.ceiling [--tables N] [--rows K,L,...] [--files A,B,...]`` (N: at
 most that many tables of each file; K, L: the rows of :data:`MODELS` by number from 1; A, B:
@@ -72,8 +77,8 @@ from papwc.studies.one_pulse import CONSISTENT, FRESH_MARGIN, FRESH_MOVES, Candi
 from papwc.studies.sliding import f_c_band
 
 __all__ = ["BUDGET", "E0", "FILE_CHOICES", "FILES", "MODELS", "Approach", "FastApproach", "Model",
-           "approach", "beyond", "files", "halve", "main", "pulse", "pulse_path", "rows",
-           "runaway", "tables"]
+           "approach", "beyond", "files", "halve", "identified", "main", "pulse", "pulse_path",
+           "rows", "runaway", "tables"]
 
 #: Scenario files whose rigid draws are the tables (by default), and those ``--files`` may name:
 #: the Monte Carlo's files, whose rigid draws are stick–slip or LuGre tables.
@@ -113,7 +118,8 @@ class Model(NamedTuple):
     told) instead of its true position (:meth:`Approach.run`). With ``fast`` its candidates
     are tables of the one-pulse model (:class:`FastApproach`); with ``slid`` too, their
     ``f_c`` lies within the band the slides of the exact-model controller's wide pulses
-    leave on the table (:func:`papwc.studies.sliding.f_c_band`)."""
+    leave on the table (:func:`papwc.studies.sliding.f_c_band`). With ``identified`` it is
+    told what ``papwc identify`` finds on a log of the table (:func:`identified`)."""
 
     label: str
     told: dict[str, float] = {}
@@ -126,6 +132,7 @@ class Model(NamedTuple):
     encoder: bool = False
     fast: bool = False
     slid: bool = False
+    identified: bool = False
 
     def params(self, table: dict[str, float]) -> dict[str, float]:
         """The model's plant parameters for the table's."""
@@ -171,6 +178,14 @@ MODELS = (
           slid=True),
     Model("the table, through the table's encoder", encoder=True),
     Model("the table, through the table's encoder, guarded", encoder=True, guard=True),
+    Model("the table but where the breakaway is drawn, through the table's encoder",
+          band=False, encoder=True),
+    Model("the table's m, f_c, c, lag and v_s (what papwc identify fits), not the ripple nor "
+          "where the breakaway is drawn, through the table's encoder", told={"ripple": 0.0},
+          band=False, encoder=True),
+    Model("what papwc identify finds on a 60 s log of the table, not where the breakaway is "
+          "drawn, through the table's encoder", told={"ripple": 0.0}, band=False,
+          encoder=True, identified=True),
 )
 #: What a planner learns a field over: values from the one under which a pulse moves the
 #: table farthest (no lag; friction falling off at the lowest speed) to the least far,
@@ -192,6 +207,12 @@ REST_READS = 3
 Z_NOISE = 3.0
 #: Largest number of tables taken of each file.
 TABLES_MAX = 1000
+#: The fields ``papwc identify`` fits (v_s and tau_u where it chooses the Stribeck curve and
+#: the lag), the length of its log, s, and the travel its excitation keeps within, m (its
+#: defaults).
+IDENTIFIED = ("m", "f_c", "c", "v_s", "tau_u")
+IDENTIFY_S = 60.0
+IDENTIFY_TRAVEL = 0.05
 
 
 def pulse_path(plant: Plant, height: float, readings: list[float] | None = None
@@ -605,8 +626,24 @@ def beyond(record: Sequence[tuple[float, float]], far: bool) -> tuple[int, int, 
     return len(moving), len(out), max(out, default=0.0)
 
 
+def identified(params: dict[str, float]) -> dict[str, float]:
+    """What ``papwc identify`` finds on the table: the fields it fits, from a log of
+    :data:`IDENTIFY_S` s of its excitation (``papwc identify --design``, the defaults)
+    applied to the table and read through its encoder; ``v_s`` and ``tau_u`` 0 where it did
+    not choose the Stribeck curve or the lag."""
+    from papwc.identify.excitation import apply_to_plant, design
+    from papwc.identify.fit import identify
+
+    log = apply_to_plant(design(T, F_P_MAX, IDENTIFY_TRAVEL, IDENTIFY_S), T, params)
+    found = {e.name: e.value for e in identify(log).estimates}
+    return {name: float(found.get(name, 0.0)) for name in IDENTIFIED}
+
+
 def approach(params: dict[str, float], told: Model) -> Approach:
-    """:meth:`Approach.run` from ``E0`` within ``BUDGET`` (a worker's task)."""
+    """:meth:`Approach.run` from ``E0`` within ``BUDGET`` (a worker's task); told what
+    ``papwc identify`` finds on the table first where the model says so."""
+    if told.identified:
+        told = told._replace(told={**told.told, **identified(params)})
     return (FastApproach if told.fast else Approach)(params, told).run()
 
 
@@ -667,6 +704,8 @@ def main(argv: Sequence[str] | None = None) -> None:
             for told in models:
                 if "f_s_spread" in told.told and not any(p.get("f_s_spread") for p in found):
                     continue  # LuGre: no random stiction to take wider
+                if told.identified and any(p.get("sigma_0") for p in found):
+                    continue  # LuGre: papwc identify has no model of it
                 done = list(pool.map(approach, found, [told] * len(found)))
                 reached = sum(a.error <= 1e-6 for a in done)
                 times = [a.time for a in done if a.error <= 1e-6]
