@@ -42,11 +42,12 @@ do: the ripple's phase there is known to it.) Rows 17-21 do the same on the one-
 exact-model controller's slides after its wide pulses leave on the table
 (:func:`papwc.studies.sliding.f_c_band`). Rows 22 and 23 are rows 2 and 3 through the
 table's encoder itself (its count and noise): the table told, unguarded and guarded. Rows
-24-26, through the encoder too, are not told where the breakaway is drawn (they take a fresh
+24-27, through the encoder too, are not told where the breakaway is drawn (they take a fresh
 stick's lowest breakaway from the moves, as the exact-model controller does): told the rest of
 the table (24); told what ``papwc identify`` fits, the mass, the friction, the damping, the lag
 and the Stribeck curve, and no ripple (25); told what it finds on a 60 s log of the table
-(26: :func:`identified`, about 2 min a table; not on LuGre tables, which it does not model).
+(26: :func:`identified`, about 2 min a table; not on LuGre tables, which it does not model),
+and the same but the table's v_s (27).
 
 Run ``python -m papwc.studies.ceiling [--tables N] [--rows K,L,...] [--files A,B,...]`` (N: at
 most that many tables of each file; K, L: the rows of :data:`MODELS` by number from 1; A, B:
@@ -118,8 +119,8 @@ class Model(NamedTuple):
     told) instead of its true position (:meth:`Approach.run`). With ``fast`` its candidates
     are tables of the one-pulse model (:class:`FastApproach`); with ``slid`` too, their
     ``f_c`` lies within the band the slides of the exact-model controller's wide pulses
-    leave on the table (:func:`papwc.studies.sliding.f_c_band`). With ``identified`` it is
-    told what ``papwc identify`` finds on a log of the table (:func:`identified`)."""
+    leave on the table (:func:`papwc.studies.sliding.f_c_band`). The fields of ``identified`` it is
+    told as ``papwc identify`` finds them on a log of the table (:func:`identified`)."""
 
     label: str
     told: dict[str, float] = {}
@@ -132,7 +133,7 @@ class Model(NamedTuple):
     encoder: bool = False
     fast: bool = False
     slid: bool = False
-    identified: bool = False
+    identified: tuple[str, ...] = ()
 
     def params(self, table: dict[str, float]) -> dict[str, float]:
         """The model's plant parameters for the table's."""
@@ -185,7 +186,9 @@ MODELS = (
           band=False, encoder=True),
     Model("what papwc identify finds on a 60 s log of the table, not where the breakaway is "
           "drawn, through the table's encoder", told={"ripple": 0.0}, band=False,
-          encoder=True, identified=True),
+          encoder=True, identified=("m", "f_c", "c", "v_s", "tau_u")),
+    Model("the same but the table's v_s", told={"ripple": 0.0}, band=False, encoder=True,
+          identified=("m", "f_c", "c", "tau_u")),
 )
 #: What a planner learns a field over: values from the one under which a pulse moves the
 #: table farthest (no lag; friction falling off at the lowest speed) to the least far,
@@ -643,7 +646,9 @@ def approach(params: dict[str, float], told: Model) -> Approach:
     """:meth:`Approach.run` from ``E0`` within ``BUDGET`` (a worker's task); told what
     ``papwc identify`` finds on the table first where the model says so."""
     if told.identified:
-        told = told._replace(told={**told.told, **identified(params)})
+        found = identified(params)
+        told = told._replace(told={**told.told,
+                                   **{name: found[name] for name in told.identified}})
     return (FastApproach if told.fast else Approach)(params, told).run()
 
 
