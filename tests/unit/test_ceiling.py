@@ -249,6 +249,12 @@ def test_the_identified_row_is_told_what_identify_finds(monkeypatch):
     assert {k: done.model_params[k] for k in told} == told
     assert done.model_params["ripple"] == 0.0 and done.table.ripple is not None
     assert done.model.ripple is None
+    # the next row takes the table's v_s instead of the one found
+    same_but_v_s = ceiling.MODELS[ceiling.MODELS.index(row) + 1]
+    done = ceiling.approach({**LAG, "v_s": 1e-3}, same_but_v_s)
+    assert done.model_params["v_s"] == 1e-3
+    assert {k: done.model_params[k] for k in told if k != "v_s"} == {
+        k: v for k, v in told.items() if k != "v_s"}
 
 
 def test_the_identified_row_is_not_run_on_lugre_tables(capsys):

@@ -102,6 +102,12 @@ F_P_MAX = 300.0
 COUNT = 1e-7
 #: Bisection steps of a planned height and of a proof.
 STEPS = 18
+#: The fields ``papwc identify`` fits (v_s and tau_u where it chooses the Stribeck curve and
+#: the lag), the length of its log, s, and the travel its excitation keeps within, m (its
+#: defaults).
+IDENTIFIED = ("m", "f_c", "c", "v_s", "tau_u")
+IDENTIFY_S = 60.0
+IDENTIFY_TRAVEL = 0.05
 
 
 class Model(NamedTuple):
@@ -186,9 +192,9 @@ MODELS = (
           band=False, encoder=True),
     Model("what papwc identify finds on a 60 s log of the table, not where the breakaway is "
           "drawn, through the table's encoder", told={"ripple": 0.0}, band=False,
-          encoder=True, identified=("m", "f_c", "c", "v_s", "tau_u")),
+          encoder=True, identified=IDENTIFIED),
     Model("the same but the table's v_s", told={"ripple": 0.0}, band=False, encoder=True,
-          identified=("m", "f_c", "c", "tau_u")),
+          identified=tuple(name for name in IDENTIFIED if name != "v_s")),
 )
 #: What a planner learns a field over: values from the one under which a pulse moves the
 #: table farthest (no lag; friction falling off at the lowest speed) to the least far,
@@ -210,12 +216,6 @@ REST_READS = 3
 Z_NOISE = 3.0
 #: Largest number of tables taken of each file.
 TABLES_MAX = 1000
-#: The fields ``papwc identify`` fits (v_s and tau_u where it chooses the Stribeck curve and
-#: the lag), the length of its log, s, and the travel its excitation keeps within, m (its
-#: defaults).
-IDENTIFIED = ("m", "f_c", "c", "v_s", "tau_u")
-IDENTIFY_S = 60.0
-IDENTIFY_TRAVEL = 0.05
 
 
 def pulse_path(plant: Plant, height: float, readings: list[float] | None = None
