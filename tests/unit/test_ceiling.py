@@ -236,9 +236,8 @@ def test_the_identified_row_is_told_what_identify_finds(monkeypatch):
     monkeypatch.setattr(fit, "identify", lambda log: Identification)
     told = ceiling.identified(LAG)
     assert told == {"m": 149.0, "f_c": 97.0, "c": 720.0, "v_s": 3e-3, "tau_u": 0.0}
-    # the log: the design's defaults applied to the table itself
-    assert logs == [((ceiling.T, ceiling.F_P_MAX, ceiling.IDENTIFY_TRAVEL, ceiling.IDENTIFY_S),
-                     ceiling.T, LAG)]
+    # the log: the design's defaults (papwc identify --design) applied to the table itself
+    assert logs == [((0.01, 300.0, 0.05, 60.0), 0.01, LAG)]
 
     # the row's approach plans on those values (and no ripple), the table stepped as it is
     seen = []

@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 
 from papwc.bench import BenchContext, Row, register_section
+from papwc.identify import DESIGN_DURATION, DESIGN_F_P_MAX, DESIGN_T, DESIGN_TRAVEL
 
 #: A 60 s log must be identified within this time, s.
 IDENTIFY_SECONDS_GOAL = 60.0
@@ -19,13 +20,13 @@ def identify_wall_time(context: BenchContext) -> list[Row]:
     from papwc.identify.excitation import apply_to_plant, design
     from papwc.identify.fit import identify
 
-    u = design(0.01, 300.0, 0.05, 60.0)
+    u = design(DESIGN_T, DESIGN_F_P_MAX, DESIGN_TRAVEL, DESIGN_DURATION)
     cases = [("Table 1 plant", {})]
     if not context.quick:
         cases.append(("Table 1 plant with a Stribeck curve (v_s = 1 mm/s)", {"v_s": 1e-3}))
     rows = []
     for label, extra in cases:
-        log = apply_to_plant(u, 0.01, {**ENCODER, **extra})
+        log = apply_to_plant(u, DESIGN_T, {**ENCODER, **extra})
         start, cpu = time.perf_counter(), time.process_time()
         ident = identify(log)
         wall = time.perf_counter() - start

@@ -8,6 +8,8 @@ import math
 import sys
 from pathlib import Path
 
+from papwc.identify import DESIGN_DURATION, DESIGN_F_P_MAX, DESIGN_T, DESIGN_TRAVEL
+
 HELP = ("identify the friction plant (m, f_c, f_s, c and the deviations the data support) "
         "from a log of force and position, design the excitation, or identify a plant FMU")
 
@@ -77,19 +79,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     mode.add_argument("--position-variable", default="x_meas", metavar="NAME",
                       help="the FMU's position output (default x_meas)")
     design = parser.add_argument_group("the excitation (--design, --fmu)")
-    design.add_argument("--T", type=_positive, default=0.01, metavar="S",
-                        help="sample period, s (default 0.01)")
-    design.add_argument("--f-p-max", type=_positive, default=300.0, metavar="N",
-                        help="largest force to apply, N (default 300)")
-    design.add_argument("--duration", type=_positive, default=60.0, metavar="S",
-                        help=f"length of the excitation, s (default 60, at most "
-                             f"{MAX_DURATION:g})")
+    design.add_argument("--T", type=_positive, default=DESIGN_T, metavar="S",
+                        help=f"sample period, s (default {DESIGN_T:g})")
+    design.add_argument("--f-p-max", type=_positive, default=DESIGN_F_P_MAX, metavar="N",
+                        help=f"largest force to apply, N (default {DESIGN_F_P_MAX:g})")
+    design.add_argument("--duration", type=_positive, default=DESIGN_DURATION, metavar="S",
+                        help=f"length of the excitation, s (default {DESIGN_DURATION:g}, at "
+                             f"most {MAX_DURATION:g})")
     design.add_argument("--expect", type=_assignments, default={}, metavar="NAME=V,...",
                         help="expected m, f_c, f_s, c (default Table 1: 150 kg, 100 N, 130 N, "
                              "700 N.s/m); the design holds for plants within +-50 %%")
-    parser.add_argument("--travel", type=_positive, default=0.05, metavar="M",
-                        help="the table stays within +-M of its start (m, default 0.05): the "
-                             "excitation is made for it, a log beyond it is refused")
+    parser.add_argument("--travel", type=_positive, default=DESIGN_TRAVEL, metavar="M",
+                        help=f"the table stays within +-M of its start (m, default "
+                             f"{DESIGN_TRAVEL:g}): the excitation is made for it, a log beyond "
+                             "it is refused")
     columns = parser.add_argument_group("the log's columns")
     columns.add_argument("--time-column", default="time", metavar="NAME")
     columns.add_argument("--force-column", default="u", metavar="NAME")

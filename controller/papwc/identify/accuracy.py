@@ -15,6 +15,8 @@ import random
 import sys
 import time
 
+from papwc.identify import DESIGN_DURATION, DESIGN_F_P_MAX, DESIGN_T, DESIGN_TRAVEL
+
 __all__ = ["NOISY", "TABLE1", "draws", "main"]
 
 #: Table 1 of the paper.
@@ -50,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
                         help="deviations tried (default stribeck,lag; none)")
     args = parser.parse_args(argv)
     tried = () if args.deviations == "none" else tuple(args.deviations.split(","))
-    u = design(0.01, 300.0, 0.05, 60.0)
+    u = design(DESIGN_T, DESIGN_F_P_MAX, DESIGN_TRAVEL, DESIGN_DURATION)
     names = ["m", "f_c", "f_s", "c"] + (["v_s"] if args.stribeck > 0.0 else [])
     print("encoder  plant  " + "  ".join(f"{n:>9}" for n in names)
           + "  inside  replay_rms_m  chosen  seconds")
@@ -58,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         worst = dict.fromkeys(names, 0.0)
         for i, plant in enumerate(draws(args.seed, args.plants)):
             truth = {**plant, **({"v_s": args.stribeck} if args.stribeck > 0.0 else {})}
-            log = apply_to_plant(u, 0.01, {**truth, **encoder, "seed": i})
+            log = apply_to_plant(u, DESIGN_T, {**truth, **encoder, "seed": i})
             start = time.perf_counter()
             ident = identify(log, tried)
             seconds = time.perf_counter() - start

@@ -103,11 +103,8 @@ COUNT = 1e-7
 #: Bisection steps of a planned height and of a proof.
 STEPS = 18
 #: The fields ``papwc identify`` fits (v_s and tau_u where it chooses the Stribeck curve and
-#: the lag), the length of its log, s, and the travel its excitation keeps within, m (its
-#: defaults).
+#: the lag).
 IDENTIFIED = ("m", "f_c", "c", "v_s", "tau_u")
-IDENTIFY_S = 60.0
-IDENTIFY_TRAVEL = 0.05
 
 
 class Model(NamedTuple):
@@ -630,14 +627,16 @@ def beyond(record: Sequence[tuple[float, float]], far: bool) -> tuple[int, int, 
 
 
 def identified(params: dict[str, float]) -> dict[str, float]:
-    """What ``papwc identify`` finds on the table: the fields it fits, from a log of
-    :data:`IDENTIFY_S` s of its excitation (``papwc identify --design``, the defaults)
-    applied to the table and read through its encoder; ``v_s`` and ``tau_u`` 0 where it did
-    not choose the Stribeck curve or the lag."""
+    """What ``papwc identify`` finds on the table: the fields it fits, from a log of its
+    excitation with the defaults of ``papwc identify --design`` (60 s at 100 Hz) applied to
+    the table and read through its encoder; ``v_s`` and ``tau_u`` 0 where it did not choose
+    the Stribeck curve or the lag."""
+    from papwc.identify import DESIGN_DURATION, DESIGN_F_P_MAX, DESIGN_T, DESIGN_TRAVEL
     from papwc.identify.excitation import apply_to_plant, design
     from papwc.identify.fit import identify
 
-    log = apply_to_plant(design(T, F_P_MAX, IDENTIFY_TRAVEL, IDENTIFY_S), T, params)
+    u = design(DESIGN_T, DESIGN_F_P_MAX, DESIGN_TRAVEL, DESIGN_DURATION)
+    log = apply_to_plant(u, DESIGN_T, params)
     found = {e.name: e.value for e in identify(log).estimates}
     return {name: float(found.get(name, 0.0)) for name in IDENTIFIED}
 
