@@ -261,3 +261,27 @@ def test_the_identified_row_is_not_run_on_lugre_tables(capsys):
     ceiling.main(["--rows", str(row), "--files", "realism_mc_lugre.toml", "--tables", "1"])
     out = capsys.readouterr().out
     assert out.startswith("from rest") and "realism_mc_lugre.toml" not in out
+
+
+def test_ctrl_c_gives_one_line_and_leaves_no_worker():
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    # Ctrl-C reaches the whole process group, the study's workers too: one of them busy
+    # identifying the one table (minutes), the other waiting for work
+    row = 1 + next(i for i, m in enumerate(ceiling.MODELS) if m.identified)
+    proc = subprocess.Popen([sys.executable, "-m", "papwc.studies.ceiling", "--rows", str(row),
+                             "--files", "realism_mc.toml", "--tables", "1"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    time.sleep(4.0)
+    os.killpg(proc.pid, signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130
+    assert err == "python -m papwc.studies.ceiling: interrupted\n"
+    assert out.startswith("from rest")
+    with pytest.raises(ProcessLookupError):  # the workers were terminated with the pool
+        os.killpg(proc.pid, 0)

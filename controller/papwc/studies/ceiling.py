@@ -61,10 +61,11 @@ import argparse
 import itertools
 import math
 import os
+import signal
 import statistics
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from multiprocessing import Pool
 from typing import NamedTuple
 
 from papwc.battery.plan import plan_runs
@@ -651,6 +652,13 @@ def approach(params: dict[str, float], told: Model) -> Approach:
     return (FastApproach if told.fast else Approach)(params, told).run()
 
 
+def _ignore_interrupt() -> None:
+    """Initializer of the study's worker processes: they ignore Ctrl-C, which the terminal
+    sends to the whole process group; the main process is interrupted, says so in one line,
+    and the pool's exit terminates them."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def rows(text: str) -> tuple[int, ...]:
     """An argparse type: row numbers of :data:`MODELS` (1-based), separated by commas."""
     parse = whole_number(1, len(MODELS))
@@ -702,7 +710,7 @@ def main(argv: Sequence[str] | None = None) -> None:
           f"{CYCLE:g} s, ending at |e| <= {STOP * 1e6:g} um; the planner reads the true "
           "position (through the table's encoder where its row says so)")
     workers = min(2, os.cpu_count() or 1)
-    with ProcessPoolExecutor(workers) as pool:
+    with Pool(workers, initializer=_ignore_interrupt) as pool:
         for name in args.files:
             found = tables(name)[:count]
             for told in models:
@@ -710,7 +718,7 @@ def main(argv: Sequence[str] | None = None) -> None:
                     continue  # LuGre: no random stiction to take wider
                 if told.identified and any(p.get("sigma_0") for p in found):
                     continue  # LuGre: papwc identify has no model of it
-                done = list(pool.map(approach, found, [told] * len(found)))
+                done = pool.starmap(approach, [(params, told) for params in found])
                 reached = sum(a.error <= 1e-6 for a in done)
                 times = [a.time for a in done if a.error <= 1e-6]
                 median = f"{statistics.median(times):.2f} s" if times else "-"
