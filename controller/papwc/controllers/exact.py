@@ -52,11 +52,12 @@ less than one sample at the stiction force, Eq. (20). This controller
   starts and a pulse that crept is evidence, not the end of it;
 * on a table whose breakaway is smooth (two one-sample pulses that moved far less than
   Eq. (3) says, or Eq. (3) finding no pulse that helps before any moved the table visibly),
-  plans its one-sample pulses on the evidence of the breakaway
-  (:class:`~papwc.controllers.breakaway.BreakawayEvidence`): for the lowest breakaway force
-  still possible, with the excess that moves the table ``trust*|e|`` on a curve fitted to its
-  creeps, so that a table breaking away higher moves less; Eq. (3) keeps planning on a
-  machine with a mode and for the dual-loop kind;
+  and from the first pulse on a drive told its mode (the ringing each slip leaves shifts the
+  breakaway the next pulse meets), plans its one-sample pulses on the evidence of the
+  breakaway (:class:`~papwc.controllers.breakaway.BreakawayEvidence`): for the lowest
+  breakaway force still possible, with the excess that moves the table ``trust*|e|`` on a
+  curve fitted to its creeps, so that a table breaking away higher moves less; Eq. (3) keeps
+  planning on a mode seen ringing (not told) and for the dual-loop kind;
 * stops once ``|e|`` is below what a move can achieve (half the encoder
   resolution, or the model's relative error times the move), when even the
   cautious pulse cannot help a rejected model (``model_rejected``), and after
@@ -258,10 +259,10 @@ class ExactController(PulseControllerBase):
 
     def on_evidence(self) -> bool:
         """Whether the pulses near breakaway are planned on the evidence of the breakaway:
-        it showed smooth, on a machine without a mode (told or seen ringing), with
-        ``safeguards``."""
+        it showed smooth, on a machine without a mode seen ringing, with ``safeguards``
+        (on a drive told its mode, from its first pulse: :meth:`plan_pulse`)."""
         return (self.evidence_planning and self.breakaway.smooth and self.guarded
-                and not self.seq.flexible())
+                and (self.trust.flexible or not self.seq.flexible()))
 
     def correction(self, n: int, f: float) -> float:
         """Ratio measured/model of the earlier pulses of width n nearest to height f (N).
@@ -395,14 +396,22 @@ class ExactController(PulseControllerBase):
         broke away there (:meth:`lowest_breakaway_move`), and above the highest height
         that did not move since the table last moved (``f_lb``). A pulse that did not
         move raises ``f_lb``; so a maneuver is not given up while such a pulse can help.
+        On a drive told its mode (``f_mode`` > 0) the one-sample pulses are planned so from
+        the first (:meth:`_plan_smooth`); on a mode seen ringing, by Eq. (3).
         """
         self._planned_last = self._planned[0] == 1
         self._planned = (0, 0.0, 0.0)
         self.ev_lo = 0.0
         if not self.guarded or not math.isfinite(e):
             return self._plan(e)
+        if self.trust.flexible and self.evidence_planning:
+            # a drive told its mode: the ringing each slip leaves shifts the breakaway the
+            # next pulse meets, as a breakaway drawn anew at every stick does; its one-sample
+            # pulses are planned for the lowest breakaway still possible from the first
+            self.breakaway.smooth = True
+            return self._plan_smooth(e)
         if self.seq.flexible():
-            # a machine with a mode: a pulse's move depends on the ringing it meets more
+            # a mode seen ringing: a pulse's move depends on the ringing it meets more
             # than on the breakaway; Eq. (3) plans, the sequencer shrinks the pulses
             return self._plan_eq3(e)
         if self.on_evidence():
