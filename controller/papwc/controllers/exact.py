@@ -409,13 +409,12 @@ class ExactController(PulseControllerBase):
             # next pulse meets, as a breakaway drawn anew at every stick does; its one-sample
             # pulses are planned for the lowest breakaway still possible from the first
             self.breakaway.smooth = True
+        if self.on_evidence():
             return self._plan_smooth(e)
         if self.seq.flexible():
             # a mode seen ringing: a pulse's move depends on the ringing it meets more
             # than on the breakaway; Eq. (3) plans, the sequencer shrinks the pulses
             return self._plan_eq3(e)
-        if self.on_evidence():
-            return self._plan_smooth(e)
         n, f_p = self._plan_eq3(e)
         if ((f_p == 0.0 and self.seq.refusal in (Reason.NO_MOVE_HELPS, Reason.MODEL_REJECTED))
                 or (f_p != 0.0 and self.seq.may_end_farther(e, f_p, self.reach(n, f_p)))):
