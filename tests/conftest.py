@@ -3,7 +3,10 @@
 - ``tests/unit/``: fast tests of the model layer, the controllers and estimators,
   settings and scenario validation, and the master with in-process slaves;
 - ``tests/integration/``: FMUs built and run (fmpy, libcosim, SSP), the command
-  line, batteries and Dask.
+  line, batteries and Dask;
+- ``tests/studies/``: the studies beside the package (``papwc_studies``), marked ``study``
+  and ``slow``: outside the quick loop and outside the default selection (pyproject's
+  ``-m "not study"``); ``pytest -m study`` runs them (CI does, after the suite).
 
 The project's FMUs are built once per session by :func:`papwc.fmubuild.fmus.build_all`
 into a temporary folder (fixture ``fmu_dir``; FrictionPlant is the native FMU, compiled by
@@ -15,7 +18,8 @@ into this process (a loaded pythonfmu FMU puts its bundled ``pythonfmu`` copy in
 
 Tests marked ``libcosim`` or ``dask`` are skipped, not errors, when libcosimpy or dask
 is not installed (the ``cosim`` and ``dask`` extras). Every test under ``tests/unit/``
-is marked ``unit``, every test under ``tests/integration/`` ``integration``.
+is marked ``unit``, every test under ``tests/integration/`` ``integration``, every test
+under ``tests/studies/`` ``study``.
 """
 
 from __future__ import annotations
@@ -50,10 +54,11 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     """
     for item in items:
         path = Path(str(item.path)).resolve()
-        for folder in ("unit", "integration"):
+        for folder, marker in (("unit", "unit"), ("integration", "integration"),
+                               ("studies", "study")):
             if (TESTS_DIR / folder) in path.parents:
-                item.add_marker(getattr(pytest.mark, folder))
-                if folder == "integration":
+                item.add_marker(getattr(pytest.mark, marker))
+                if folder != "unit":
                     item.add_marker(pytest.mark.slow)
         for marker, module in EXTRA_MODULES.items():
             if item.get_closest_marker(marker) is not None and module_missing(module):

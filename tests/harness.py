@@ -74,6 +74,22 @@ REALISM_VARIANTS = {
 }
 
 
+def _realism_pulse_controllers() -> dict[str, dict[str, Any]]:
+    """The pulse controllers of scenarios/realism.toml by kind (their settings, no label)."""
+    import tomllib
+
+    from papwc.resources import scenario_file
+
+    with open(scenario_file("realism.toml"), "rb") as f:
+        tables = tomllib.load(f)["controller"]
+    return {t["kind"]: {k: v for k, v in t.items() if k != "label"}
+            for t in tables if t["kind"] in ("pwc", "papwc", "exact")}
+
+
+#: The settings of the pulse controllers of scenarios/realism.toml (pwc, papwc, exact).
+REALISM_SETTINGS = _realism_pulse_controllers()
+
+
 def table_1(**changes: Any) -> dict[str, Any]:
     """The plant of Table 1 with ``changes`` (other values, deviations of a real machine)."""
     return {**TABLE_1, **changes}

@@ -12,8 +12,7 @@ only those above it in this list:
 - ``papwc.results``: what runs produce (metrics, pulses, the results folder, plots);
 - ``papwc.scenario`` and ``papwc.scenario_run``: scenario files and running them;
   ``papwc.battery``: batteries of runs; ``papwc.identify``: fitting the plant to a log;
-  ``papwc.analysis``: the paper reproduced; ``papwc.studies``: the studies behind the
-  README's open bounds; ``papwc.fmubuild``: building the FMUs and the SSP;
+  ``papwc.analysis``: the paper reproduced; ``papwc.fmubuild``: building the FMUs and the SSP;
   ``papwc.bench``: ``papwc bench``'s sections;
 - ``papwc.cli`` and ``papwc.commands``: the ``papwc`` command line.
 

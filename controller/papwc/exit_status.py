@@ -1,7 +1,7 @@
 """A command's body run to an exit status, each failure said in one line on standard error.
 
 Used by the ``papwc`` command line (:mod:`papwc.cli`) and by the modules run as ``python -m``
-(the studies in :mod:`papwc.studies`).
+(the studies beside the package, ``python -m papwc_studies.NAME``).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ def run_command(name: str, run: Callable[[], int | None], memory_hint: str | Non
     """Run a command's body ``run``; return its exit code, its failures each in one line.
 
     ``name`` opens the line on standard error (``papwc run``, ``python -m
-    papwc.studies.ringing``). Exit codes as :func:`main`'s: a :class:`PapwcError` its own
+    papwc_studies.ringing``). Exit codes as :func:`main`'s: a :class:`PapwcError` its own
     (2 by default), Ctrl-C 130, an operating-system error (also standard output closed or
     full) or no memory 1 (the message names ``memory_hint``, the flags that lower the work).
     ``SystemExit`` (argparse's refusals) passes through.

@@ -8,6 +8,8 @@ and realism_mc.toml), run in process with the settings of scenarios/realism.toml
 from __future__ import annotations
 
 import pytest
+from harness import REALISM_SETTINGS as SETTINGS
+from harness import table_1
 
 from papwc.battery.plan import plan_runs
 from papwc.battery.schema import load_battery
@@ -20,10 +22,9 @@ from papwc.model.controller_settings import F_MODE_MAX_T, MODE_PERIODS, settings
 from papwc.resources import scenario_file
 from papwc.results.pulses import pulse_ratio, pulses_of
 from papwc.scenario import ScenarioError, load_scenario
-from papwc.studies.ring_scan import SETTINGS, TABLE_1  # the controllers of realism.toml
 
 T = 0.01
-RIGID = TABLE_1
+RIGID = table_1()
 #: 20 Hz while the table sticks, 2 % damping (realism.toml's flexible case).
 TABLE_20HZ = {**RIGID, "m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3}
 #: 40 Hz while the table sticks (realism_mc.toml's flexible_40hz), above 0.25/T at T = 10 ms.

@@ -9,6 +9,7 @@ that moved 1031 um (2.2 times the runaway bound) and PAPWC one that moved 1.5 ti
 from __future__ import annotations
 
 import pytest
+from harness import REALISM_SETTINGS as SETTINGS
 from harness import run_on_physics, table_1
 
 from papwc.controllers import make_controller
@@ -16,7 +17,6 @@ from papwc.controllers.rest import RING_LEG
 from papwc.controllers.settings import ControllerSettings
 from papwc.master import PhysicsSlave
 from papwc.results.pulses import pulse_ratio
-from papwc.studies.ring_scan import SETTINGS, mc_rigid, realism_rigid, ringing_runs
 
 T = 0.01
 RIGID = table_1()
@@ -115,12 +115,3 @@ def test_a_told_mode_is_not_looked_for():
     slave.initialize()
     list(_forces(slave, ctl, 1e-3, range(200)))
     assert not ctl.trust.ring and ctl.rest.ring_dwell == 0
-
-
-@pytest.mark.slow
-def test_the_ring_scan_finds_ringing_on_a_flexible_table_only():
-    """python -m papwc.studies.ring_scan counts what it should."""
-    runs, seen = ringing_runs([("flex15", TABLE_15HZ), ("eq1", RIGID)])
-    assert runs == 18
-    assert seen and all(line.startswith("flex15 ") for line in seen)
-    assert len(realism_rigid()) == 15 and len(mc_rigid(2)) == 4
