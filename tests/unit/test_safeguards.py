@@ -23,6 +23,7 @@ from papwc.controllers import (
 )
 from papwc.controllers.base import (
     BAND_SIGMAS,
+    CUT_BY_ONE_UP_TO,
     NOISE_DWELL,
     X_LIMIT,
     Outcome,
@@ -533,3 +534,24 @@ def test_settings_are_model_layer_entries():
     assert SETTINGS_BY_NAME["f_mode"].kinds == ()
     assert dataclasses.replace(_settings("papwc"), f_mode=-1.0).problems() == [
         ("f_mode", "f_mode = -1.0 Hz: must satisfy 0 <= f_mode <= 1e+06 Hz")]
+
+
+@pytest.mark.parametrize("kind", ["pwc", "papwc"])
+def test_a_pulse_planned_millions_of_samples_wide_is_cut_in_few_tests(kind, monkeypatch):
+    """No t_p_max and an estimate that says the mass barely moves (m_est = 1e9 kg): Eq. (6)
+    plans a pulse of about 110,000 samples. Cut one sample at a time that took as many
+    predictions a plan (a hypothesis scenario with a wider plan did not end in 15 minutes);
+    halved first it takes a few dozen and the width left is one whose prediction is within
+    the trust region."""
+    settings = ControllerSettings.from_mapping({"kind": kind, "f_p_max": 300.0,
+                                                "t_p_max": math.inf, "m_est": 1e9,
+                                                "f_c_est": 80.0})
+    ctl = make_controller(settings, 0.01)
+    calls = []
+    predict = ctl.predict
+    monkeypatch.setattr(ctl, "predict", lambda n, f: calls.append(n) or predict(n, f))
+    e = 0.5
+    n, f_p = ctl.plan_pulse(e)
+    assert len(calls) <= 31 + CUT_BY_ONE_UP_TO + 1, len(calls)
+    assert max(calls) > 100_000  # the plan was that wide before it was cut
+    assert n == 1 or predict(n, f_p) <= ctl.trust() * e

@@ -23,7 +23,7 @@ Standard library only (bundled into the controller FMU).
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from ..model.controller_settings import MODE_PERIODS
@@ -36,8 +36,27 @@ from .trust import TRUST_FLEXIBLE, TRUST_GOOD, TRUST_GROWTH, TRUST_MIN, TrustReg
 __all__ = [
     "BAND_SIGMAS", "NOISE_DWELL", "NOISE_MEMORY", "NOISE_WINDOW", "PRECISION_MIN",
     "TRUST_FLEXIBLE", "TRUST_GOOD", "TRUST_GROWTH", "TRUST_MIN", "X_LIMIT", "Z_ACT",
-    "Z_DECIDE", "Mode", "Outcome", "PulseControllerBase", "Reason",
+    "Z_DECIDE", "CUT_BY_ONE_UP_TO", "Mode", "Outcome", "PulseControllerBase", "Reason",
+    "cut_width",
 ]  # fmt: skip
+
+#: Widest pulse (samples) that :func:`cut_width` cuts one sample at a time; a wider one is
+#: halved first (a law without ``t_p_max`` may plan millions of samples on a poor estimate,
+#: and cutting those one by one would take longer than a sample).
+CUT_BY_ONE_UP_TO = 64
+
+
+def cut_width(n: int, too_far: Callable[[int], bool]) -> int:
+    """The width ``n`` (samples) cut while ``too_far(n)`` and ``n > 1``.
+
+    One sample at a time from at most :data:`CUT_BY_ONE_UP_TO` samples (the largest width
+    below ``n`` that is not too far); from a wider pulse, halved first until it is not too
+    far or within that width (a shorter pulse than the largest allowed, never a longer one),
+    so that the cut takes at most about ``log2(n) + CUT_BY_ONE_UP_TO`` tests.
+    """
+    while n > 1 and too_far(n):
+        n = n // 2 if n > CUT_BY_ONE_UP_TO else n - 1
+    return n
 
 
 class PulseControllerBase(Controller):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from .base import PulseControllerBase
+from .base import PulseControllerBase, cut_width
 from .estimators import Rls2
 from .pwc import REGRESSOR_PLANNED
 from .sequencer import Z_DECIDE
@@ -174,15 +174,17 @@ class PapwcController(PulseControllerBase):
             k_c = min(k_c, self.trust())
         t_p = math.sqrt(k_c * abs(e) / b)  # Eq. (6)
         self.t_p_plan = min(t_p, self.n_max * self.T)
-        n = self.width_samples(t_p)
-        while True:
+
+        def height(n: int) -> float:
+            """Eq. (11) for the width n*T, within the floor and f_p_max (N)."""
             T_x = n * self.T
             f_p = f_max if t_p >= T_x else papwc_amplitude(f_c, f_max, t_p, T_x)
-            f_p = min(max(f_p, self.f_p_floor), f_max)
-            if not (self.guarded and n > 1 and self.predict(n, f_p) > self.trust() * abs(e)):
-                break
-            n -= 1
-        f_p = math.copysign(f_p, e)
+            return min(max(f_p, self.f_p_floor), f_max)
+
+        n = self.width_samples(t_p)
+        if self.guarded:
+            n = cut_width(n, lambda n: self.predict(n, height(n)) > self.trust() * abs(e))
+        f_p = math.copysign(height(n), e)
         if (self.guarded and n == 1 and not self.seq.flexible()
                 and self.seq.may_end_farther(e, f_p, self.reach(1, f_p))):
             # the floor may end farther; a creep's own height that cannot, by the creeps'

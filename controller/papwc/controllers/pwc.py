@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 from ..model.pulse import b_coulomb
-from .base import PulseControllerBase
+from .base import PulseControllerBase, cut_width
 from .estimators import ScalarRls
 from .settings import ControllerSettings
 
@@ -55,8 +55,7 @@ class PwcController(PulseControllerBase):
         n = self.width_samples(t_p)
         if self.guarded:
             limit = self.trust() * abs(e)
-            while n > 1 and self.predict(n, 1.0) > limit:
-                n -= 1
+            n = cut_width(n, lambda n: self.predict(n, 1.0) > limit)
         return n, math.copysign(self.settings.f_p_max, e)
 
     @property
