@@ -30,8 +30,8 @@ def _write(tmp_path: Path, text: str) -> Path:
 
 
 PAPWC_FIELDS = ("kind, f_p_max, t_p_max, K_c, tolerance, m_est, f_c_est, f_p_min, floor_raise, "
-                "delta_inv, lambda, regressor, update_covariance, floor_mode, e_band, k_p, k_d, "
-                "rest_samples, rest_band, max_pulses, safeguards, rest_auto, f_mode, m_d_est, "
+                "e_band, k_p, k_d, rest_samples, rest_band, max_pulses, safeguards, rest_auto, "
+                "f_mode, regressor, update_covariance, m_d_est, delta_inv, lambda, floor_mode, "
                 "label")
 
 
@@ -180,7 +180,7 @@ def test_settings_dataclass_is_built_from_the_table():
         assert SETTINGS_BY_NAME[var.name] is var
         assert var.unit in UNIT_DEFINITIONS or (var.type != "Real" and var.unit == "")
         assert var.description
-    assert ControllerSettings.KEY_ALIASES == {"lambda": "lam"}
+    assert {v.name: v.attribute for v in CONTROLLER_SETTINGS if v.attr} == {"lambda": "lam"}
     assert settings.lam == 1.0
     mapping = settings.to_mapping(with_none=True)
     assert ControllerSettings.from_mapping(mapping) == settings

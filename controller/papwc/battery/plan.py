@@ -70,7 +70,7 @@ def _default(head: str, name: str):
         return PLANT_FIELDS[name]
     if head == "maneuver":
         return getattr(Maneuver(), name)
-    return getattr(ControllerSettings(), ControllerSettings.KEY_ALIASES.get(name, name))
+    return ControllerSettings().get(name)
 
 
 def get_field(data: dict, path: str, table: int | None = None) -> object:

@@ -63,11 +63,33 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..model.controller_settings import F_MODE_MAX_T
-from .exact import ExactController
+from ..model.variables import Variable
+from .exact import EXACT_SETTINGS, ExactController
 from .interface import Mode, Outcome, Reason
 from .mode_id import ModeIdentifier
-from .sequencer import X_LIMIT
+from .sequencer import M_D_EST, X_LIMIT
 from .settings import ControllerSettings
+
+#: The settings the dual-loop controller reads besides the shared ones, the exact-model
+#: controller's and ``m_d_est``.
+DUAL_LOOP_SETTINGS: tuple[Variable, ...] = (
+    Variable("c_t_est", "Damping of the motor-table coupling the motor loop is designed with",
+             "N.s/m", 0.0, min=0.0, max=1e9, nominal=100.0),
+    Variable("f_relax", "Largest force amplitude of the drive's ringing, k_t*sqrt(delta**2 + "
+             "(delta'/(2*pi*f_mode))**2) with delta = x_d_meas - x_meas, at which the drive "
+             "counts as relaxed (a pulse starts, a move is read, the maneuver settles only "
+             "from a relaxed drive)", "N", 2.0, min=0.0, min_open=True, max=1e9,
+             nominal=1.0),
+    Variable("identify_mode", "With f_mode = 0: identify the drive's mode from the motor "
+             "encoder's free ringing (x_d_meas - x_meas while the table sticks) after a probe "
+             "(one sample of 0.4*f_c_est on the motor at the first sample, which friction "
+             "holds the table against) and build the motor loop on it, with m_d_est and "
+             "c_t_est; the table's encoder alone until then, and for good if no ringing "
+             "within 0.5 s or a mode above 0.25/T. False: f_mode = 0 means no motor loop",
+             "", False,
+             type="Boolean"),
+)
+
 
 __all__ = ["DualLoopController", "MotorLoop", "F_MODE_MAX_T", "LOOP_POLE", "PROBE_SHARE",
            "PROBE_WAIT_S", "RELAX_SAMPLES"]
@@ -198,6 +220,8 @@ class DualLoopController(ExactController):
     """
 
     kind = "dual_loop"
+    #: The settings this kind reads besides the shared ones (registry: every kind's).
+    SETTINGS = EXACT_SETTINGS + (M_D_EST,) + DUAL_LOOP_SETTINGS
     #: Its one-sample pulses are the free drive's (scaled by ``one_sample_gain``): Eq. (3)
     #: plans them, as before the evidence of the breakaway.
     evidence_planning = False

@@ -74,10 +74,29 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..model.pulse import b_coulomb, bisect_increasing, nearest_increasing, pulse_displacement
+from ..model.variables import Variable
 from .base import Z_DECIDE, PulseControllerBase, Reason
 from .breakaway import BreakawayEvidence
 from .exact_fit import PulseModelEstimator
+from .sequencer import M_D_EST
 from .settings import ControllerSettings
+
+#: The settings the exact-model controller reads besides the shared ones (and ``m_d_est``);
+#: the dual-loop controller reads them too.
+EXACT_SETTINGS: tuple[Variable, ...] = (
+    Variable("c_est", "Initial estimate of the viscous damping", "N.s/m", 0.0, min=0.0,
+             max=1e9, nominal=100.0),
+    Variable("history", "Number of pulses kept for the fit", "", 16, type="Integer", min=1,
+             max=1000),
+    Variable("x_resolution", "Resolution of the position measurement; weights the fit", "m",
+             0.0, min=0.0, max=1.0, nominal=1e-6),
+    Variable("f_s_tol", "Relative width of the f_s bracket below which no more probing is "
+             "done", "1", 0.02, min=0.0, max=1.0, min_open=True),
+    Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
+             "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
+             "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True),
+)
+
 
 __all__ = ["ExactController", "PulseModelEstimator"]
 
@@ -172,6 +191,8 @@ class ExactController(PulseControllerBase):
     """
 
     kind = "exact"
+    #: The settings this kind reads besides the shared ones (registry: every kind's).
+    SETTINGS = EXACT_SETTINGS + (M_D_EST,)
     #: Whether pulses near breakaway may be planned on the evidence of the breakaway.
     evidence_planning = True
 

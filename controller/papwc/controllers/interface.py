@@ -24,6 +24,7 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..model.controller_settings import CONTROLLER_OUTPUTS, OUTCOME_REASONS, OUTCOMES
+from ..model.variables import Variable
 from .settings import ControllerSettings, settings_for_kind
 
 __all__ = ["OUTPUT_NAMES", "Controller", "Mode", "Outcome", "Reason", "default_outputs"]
@@ -93,6 +94,10 @@ class Controller:
     """
 
     kind = "base"
+    #: The settings the kind reads besides the model layer's shared ones
+    #: (:data:`papwc.model.controller_settings.SHARED_SETTINGS`), declared in the kind's
+    #: module; the registry assembles every kind's into ``CONTROLLER_SETTINGS``.
+    SETTINGS: tuple[Variable, ...] = ()
     #: Whether the kind reads the motor encoder: the host then sets ``x_d_meas`` (m) before
     #: each :meth:`update` and a closed loop connects the plant's ``x_d_meas`` to it.
     reads_x_d_meas = False

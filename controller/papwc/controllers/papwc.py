@@ -4,11 +4,31 @@ from __future__ import annotations
 
 import math
 
+from ..model.variables import Variable
 from .base import PulseControllerBase, cut_width
 from .estimators import Rls2
-from .pwc import REGRESSOR_PLANNED
-from .sequencer import Z_DECIDE
+from .pwc import REGRESSOR_PLANNED, REGRESSOR_SETTING, UPDATE_COVARIANCE
+from .sequencer import M_D_EST, Z_DECIDE
 from .settings import ControllerSettings
+
+#: The settings PAPWC reads besides the shared ones.
+PAPWC_SETTINGS: tuple[Variable, ...] = (
+    Variable("delta_inv", "P(0) = delta_inv*I of the PAPWC estimator, Eq. (13)-(17) (the "
+             "paper: delta^-1 = 1e-5; its advice 'delta small without noise' reads as 1e5, "
+             "P(0) = F(0))", "1",
+             1e-5, min=1e-12, max=1e12),
+    Variable("lambda", "Forgetting factor lambda of Eq. (14)-(15)", "1", 1.0, min=0.0,
+             max=1.0, min_open=True, attr="lam"),
+    REGRESSOR_SETTING,
+    UPDATE_COVARIANCE,
+    Variable("floor_mode", "PAPWC pulse that did not move the mass (height at or below "
+             "f_s, Eq. (20)): 0 the amplitude floor rises floor_raise above it and the "
+             "estimator skips it; 1 the floor rises and Eq. (13)-(17) take d = 0; 2 the floor "
+             "stays f_p_min and Eq. (13)-(17) take d = 0", "", 0, type="Integer", min=0, max=2,
+             note="(0 raise, 1 raise and learn d = 0, 2 learn d = 0)"),
+    M_D_EST,
+)
+
 
 #: ``floor_mode``: a pulse that did not move raises the floor and is not learned.
 FLOOR_RAISE = 0
@@ -120,6 +140,8 @@ class PapwcController(PulseControllerBase):
     """
 
     kind = "papwc"
+    #: The settings this kind reads besides the shared ones (registry: every kind's).
+    SETTINGS = PAPWC_SETTINGS
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
         super().__init__(settings, T)

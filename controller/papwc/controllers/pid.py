@@ -45,10 +45,30 @@ import dataclasses
 import math
 
 from ..model.controller_settings import OUTCOME_REASONS
+from ..model.variables import Variable
 from .base import PulseControllerBase
 from .interface import Mode
 from .sequencer import X_LIMIT, PulseSequencer
 from .settings import ControllerSettings
+
+#: The settings the PID reads besides the shared ones.
+PID_SETTINGS: tuple[Variable, ...] = (
+    Variable("k_i", "Integral gain of the PID; default 0.25*m_est*w**3 with w = 0.1/T rad/s, "
+             "at most 0.05*2*pi*f_mode (k_p and k_d default to m_est*w**2 and 2*0.7*w*m_est "
+             "for it: the coarse loop's gains, which are these at T = 0.01 s)", "N/(m.s)", None,
+             min=0.0, max=1e18, optional=True, fmi_default=37500.0),
+    Variable("a_max", "Largest acceleration of the PID's reference trajectory; default "
+             "(f_p_max - f_c_est)/(2*m_est), half what the force limit leaves over the "
+             "friction", "m/s2", None, min=0.0, min_open=True, max=1e6, optional=True,
+             fmi_default=(300.0 - 80.0) / (2.0 * 150.0)),
+    Variable("v_max", "Largest speed of the PID's reference trajectory", "m/s", 0.05,
+             min=0.0, min_open=True, max=1e3),
+    Variable("hunt_max", "Reversals after which the PID, at rest nearer the target than the "
+             "maneuver started, stops (outcome stopped, reason hunting): a reversal is a rest "
+             "on the other side of the target than the last one", "", 4, type="Integer",
+             min=1, max=1_000_000),
+)
+
 
 #: Bandwidth of the default gains as a fraction of the sampling rate 1/T (rad/s per 1/s).
 BANDWIDTH = 0.1
@@ -175,6 +195,8 @@ class PidController(PulseControllerBase):
     """
 
     kind = "pid"
+    #: The settings this kind reads besides the shared ones (registry: every kind's).
+    SETTINGS = PID_SETTINGS
     sequencer_class = PidSequencer
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:

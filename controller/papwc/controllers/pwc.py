@@ -5,9 +5,40 @@ from __future__ import annotations
 import math
 
 from ..model.pulse import b_coulomb
+from ..model.variables import Variable
 from .base import PulseControllerBase, cut_width
 from .estimators import ScalarRls
+from .sequencer import M_D_EST
 from .settings import ControllerSettings
+
+#: ``regressor`` and ``update_covariance``: read by PWC and PAPWC.
+REGRESSOR_SETTING = (
+    Variable("regressor", "Pulse the estimator is fed, a reading the paper leaves open: 0 "
+             "the applied pulse (u_p = (n*T)**2, Eq. (7)-(9); PAPWC u of Eq. (18) with the "
+             "applied height f_p* and width T_x = n*T), 1 the planned pulse (t_p of Eq. (6), "
+             "at most t_p_max in whole samples; PAPWC Eq. (18) as printed, at f_p_max)", "", 0,
+             type="Integer", min=0, max=1, note="(0 applied, 1 planned)")
+)
+UPDATE_COVARIANCE = (
+    Variable("update_covariance", "Update F^-1 by Eq. (8) (PWC) and P by Eq. (14) (PAPWC) "
+             "after each pulse; false keeps F^-1(0) and P(0) (the paper's runs 'without "
+             "updating the inverse covariance matrix')", "", True, type="Boolean")
+)
+
+#: The settings PWC reads besides the shared ones.
+PWC_SETTINGS: tuple[Variable, ...] = (
+    Variable("F_inv0", "Initial inverse gain F^-1(0) of the PWC estimator, Eq. (8) (the "
+             "paper: 1e-5, so F(0) = 1e5)", "s4",
+             1e-5, min=1e-12, max=1e12),
+    Variable("lambda_1", "Forgetting parameter lambda_1 of Eq. (8)", "1", 1.0, min=0.0,
+             max=1.0, min_open=True, note="(Eq. (8))"),
+    Variable("lambda_2", "Forgetting parameter lambda_2 of Eq. (8)", "1", 1.0, min=0.0,
+             max=2.0, max_open=True, note="(Eq. (8))"),
+    REGRESSOR_SETTING,
+    UPDATE_COVARIANCE,
+    M_D_EST,
+)
+
 
 #: ``regressor`` setting: the estimator is fed the applied width (n*T).
 REGRESSOR_APPLIED = 0
@@ -28,6 +59,8 @@ class PwcController(PulseControllerBase):
     """
 
     kind = "pwc"
+    #: The settings this kind reads besides the shared ones (registry: every kind's).
+    SETTINGS = PWC_SETTINGS
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
         super().__init__(settings, T)

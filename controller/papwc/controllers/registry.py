@@ -1,4 +1,11 @@
-"""Controller kinds by name: a new controller is one module and one line here."""
+"""Controller kinds by name: a new controller is one module and one line here.
+
+A kind's module holds its control law and its settings (the class's ``SETTINGS``, declared
+with the model layer's :class:`~papwc.model.variables.Variable`). The model layer assembles
+its tables from this registry on first use: ``CONTROLLER_SETTINGS`` (the shared settings,
+then each kind's in this order) and ``KIND_CODES`` (PulseController.fmu's ``kind_code`` n is
+the n-th kind here: register a new kind last, so that the others keep their numbers).
+"""
 
 from __future__ import annotations
 
@@ -10,7 +17,8 @@ from .pid import PidController
 from .pwc import PwcController
 from .settings import ControllerSettings
 
-#: Controller classes by the ``kind`` of a scenario's ``[[controller]]`` table.
+#: Controller classes by the ``kind`` of a scenario's ``[[controller]]`` table, in the order
+#: of their ``kind_code`` (1, 2, ...).
 CONTROLLER_KINDS: dict[str, type[Controller]] = {
     PwcController.kind: PwcController,
     PapwcController.kind: PapwcController,

@@ -59,10 +59,22 @@ import math
 from collections.abc import Mapping
 from typing import Any, Protocol
 
+from ..model.variables import Variable
 from .interface import Mode, Outcome, Reason
 from .rest import NOISE_DWELL, NOISE_WINDOW, RestDetector
 from .settings import ControllerSettings
 from .trust import TRUST_MIN, TrustRegion
+
+#: ``m_d_est``: the motor mass of a drive told its mode, read by the sequencer's slip bound
+#: (:meth:`PulseSequencer.drive_slip`); every pulse kind lists it among its settings.
+M_D_EST = (
+    Variable("m_d_est", "Motor mass of the flexible drive (the mode f_mode is that of the "
+             "motor on the coupling against the stuck table: k_t = m_d_est*(2*pi*f_mode)**2); "
+             "told f_mode, a pulse controller fires no pulse whose work on a motor of this "
+             "mass, given back by the spring, could sling the table farther than the maneuver "
+             "started", "kg", 50.0, min=1e-6, max=1e9, nominal=10.0)
+)
+
 
 __all__ = ["PRECISION_MIN", "X_LIMIT", "Z_ACT", "Z_DECIDE", "Law", "PulseSequencer"]
 

@@ -1,16 +1,20 @@
 """The pulse controllers' settings and signals: names, units, defaults, ranges.
 
-Standard library only (bundled into PulseController.fmu). Every setting here is
-at once a field of a scenario's ``[[controller]]`` table, a battery path
-(``controller.NAME``), an attribute of
-:class:`papwc.controllers.settings.ControllerSettings` and a parameter of
-PulseController.fmu. A setting that only one controller kind reads names it in
-``kinds``.
+Standard library only (bundled into PulseController.fmu). Every setting is at once a
+field of a scenario's ``[[controller]]`` table, a battery path (``controller.NAME``), an
+attribute of :class:`papwc.controllers.settings.ControllerSettings` and a parameter of
+PulseController.fmu. The settings every kind reads are declared here
+(:data:`SHARED_SETTINGS`); a controller kind declares its own in its module (its class's
+``SETTINGS``, with this module's :class:`~papwc.model.variables.Variable`), and
+:data:`CONTROLLER_SETTINGS` is assembled from both through the registry
+(:func:`assemble_settings`), each setting's ``kinds`` naming the kinds that read it (empty:
+every kind); so is :data:`KIND_CODES`, the kinds' numbers in PulseController.fmu.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import dataclasses
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from .variables import Constraint, Variable, problems, switch_variables
@@ -19,17 +23,20 @@ __all__ = [
     "CONTROLLER_CONSTRAINTS",
     "CONTROLLER_INPUTS",
     "CONTROLLER_OUTPUTS",
-    "CONTROLLER_SETTINGS",
-    "CONTROLLER_SWITCHES",
+    "CONTROLLER_SETTINGS",  # noqa: F822 (assembled on first use, see __getattr__)
+    "CONTROLLER_SWITCHES",  # noqa: F822 (assembled on first use, see __getattr__)
+    "SHARED_SETTINGS",
     "F_MODE_MAX_T",
-    "KIND_CODE",
-    "KIND_CODES",
+    "KIND_CODE",  # noqa: F822 (assembled on first use, see __getattr__)
+    "KIND_CODES",  # noqa: F822 (assembled on first use, see __getattr__)
     "MODE_PERIODS",
     "OUTCOMES",
     "OUTCOME_REASONS",
-    "PULSE_CONTROLLER_VARIABLES",
+    "PULSE_CONTROLLER_VARIABLES",  # noqa: F822 (assembled on first use, see __getattr__)
     "REFERENCE_OFFSET",
     "SAMPLE_PERIOD",
+    "assemble_settings",
+    "kind_code_variable",
     "fmu_parameters",
     "kind_from_code",
     "settings_problems",
@@ -47,7 +54,11 @@ DWELL_MAX = 1_000_000
 F_MODE_MAX_T = 0.25
 
 #: Settings of a ``[[controller]]`` table, in the order of the FMU's value references.
-CONTROLLER_SETTINGS: tuple[Variable, ...] = (
+#: Settings every controller kind reads (a ``[[controller]]`` table of any kind may set them),
+#: in the order of the FMU's value references. Each kind adds its own in its module
+#: (``SETTINGS`` of its class, :mod:`papwc.controllers`); :data:`CONTROLLER_SETTINGS` is
+#: assembled from these and the registry.
+SHARED_SETTINGS: tuple[Variable, ...] = (
     Variable("kind", "Controller kind (pwc: Section 2, papwc: Section 3, exact: Eq. (3) "
              "learned, pid: PID with friction feed-forward, no pulses, dual_loop: exact pulses "
              "from a drive relaxed by a motor-side loop on x_d_meas)", "", "papwc",
@@ -70,34 +81,6 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("floor_raise", "Relative step by which the amplitude floor rises above an "
              "amplitude that did not move the mass", "1", 0.05, min=0.0, max=1.0,
              min_open=True),
-    Variable("F_inv0", "Initial inverse gain F^-1(0) of the PWC estimator, Eq. (8) (the "
-             "paper: 1e-5, so F(0) = 1e5)", "s4",
-             1e-5, min=1e-12, max=1e12, kinds=("pwc",)),
-    Variable("lambda_1", "Forgetting parameter lambda_1 of Eq. (8)", "1", 1.0, min=0.0,
-             max=1.0, min_open=True, note="(Eq. (8))", kinds=("pwc",)),
-    Variable("lambda_2", "Forgetting parameter lambda_2 of Eq. (8)", "1", 1.0, min=0.0,
-             max=2.0, max_open=True, note="(Eq. (8))", kinds=("pwc",)),
-    Variable("delta_inv", "P(0) = delta_inv*I of the PAPWC estimator, Eq. (13)-(17) (the "
-             "paper: delta^-1 = 1e-5; its advice 'delta small without noise' reads as 1e5, "
-             "P(0) = F(0))", "1",
-             1e-5, min=1e-12, max=1e12, kinds=("papwc",)),
-    Variable("lambda", "Forgetting factor lambda of Eq. (14)-(15)", "1", 1.0, min=0.0,
-             max=1.0, min_open=True, attr="lam", kinds=("papwc",)),
-    Variable("regressor", "Pulse the estimator is fed, a reading the paper leaves open: 0 "
-             "the applied pulse (u_p = (n*T)**2, Eq. (7)-(9); PAPWC u of Eq. (18) with the "
-             "applied height f_p* and width T_x = n*T), 1 the planned pulse (t_p of Eq. (6), "
-             "at most t_p_max in whole samples; PAPWC Eq. (18) as printed, at f_p_max)", "", 0,
-             type="Integer", min=0, max=1, note="(0 applied, 1 planned)",
-             kinds=("pwc", "papwc")),
-    Variable("update_covariance", "Update F^-1 by Eq. (8) (PWC) and P by Eq. (14) (PAPWC) "
-             "after each pulse; false keeps F^-1(0) and P(0) (the paper's runs 'without "
-             "updating the inverse covariance matrix')", "", True, type="Boolean",
-             kinds=("pwc", "papwc")),
-    Variable("floor_mode", "PAPWC pulse that did not move the mass (height at or below "
-             "f_s, Eq. (20)): 0 the amplitude floor rises floor_raise above it and the "
-             "estimator skips it; 1 the floor rises and Eq. (13)-(17) take d = 0; 2 the floor "
-             "stays f_p_min and Eq. (13)-(17) take d = 0", "", 0, type="Integer", min=0, max=2,
-             note="(0 raise, 1 raise and learn d = 0, 2 learn d = 0)", kinds=("papwc",)),
     Variable("e_band", "Error band inside which the mass at rest is handed over from the "
              "coarse feedback to pulse mode, > tolerance", "m", 0.02, min=0.0, min_open=True,
              max=1e3),
@@ -113,16 +96,8 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
     Variable("rest_band", "Largest spread of the measured position over the dwell that still "
              "counts as at rest (with rest_auto, at least this)", "m", 0.0, min=0.0, max=1.0,
              nominal=1e-6),
-    Variable("c_est", "Initial estimate of the viscous damping", "N.s/m", 0.0, min=0.0,
-             max=1e9, kinds=("exact", "dual_loop"), nominal=100.0),
-    Variable("history", "Number of pulses kept for the fit", "", 16, type="Integer", min=1,
-             max=1000, kinds=("exact", "dual_loop")),
     Variable("max_pulses", "Pulses per maneuver after which the controller stops (PWC and "
              "PAPWC: with safeguards)", "", 20, type="Integer", min=1, max=1_000_000),
-    Variable("x_resolution", "Resolution of the position measurement; weights the fit", "m",
-             0.0, min=0.0, max=1.0, kinds=("exact", "dual_loop"), nominal=1e-6),
-    Variable("f_s_tol", "Relative width of the f_s bracket below which no more probing is "
-             "done", "1", 0.02, min=0.0, max=1.0, min_open=True, kinds=("exact", "dual_loop")),
     Variable("safeguards", "Safeguards around the control law: no planned pulse beyond the "
              "trust region (a multiple of |e| that shrinks when pulses move more than "
              "predicted), none that would end the maneuver farther from the target than it "
@@ -141,45 +116,6 @@ CONTROLLER_SETTINGS: tuple[Variable, ...] = (
              f"{F_MODE_MAX_T:g}/T (a mode closer to the Nyquist frequency is refused)",
              "Hz",
              0.0, min=0.0, max=1e6, nominal=10.0),
-    Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
-             "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
-             "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True,
-             kinds=("exact", "dual_loop")),
-    Variable("k_i", "Integral gain of the PID; default 0.25*m_est*w**3 with w = 0.1/T rad/s, "
-             "at most 0.05*2*pi*f_mode (k_p and k_d default to m_est*w**2 and 2*0.7*w*m_est "
-             "for it: the coarse loop's gains, which are these at T = 0.01 s)", "N/(m.s)", None,
-             min=0.0, max=1e18, optional=True, kinds=("pid",), fmi_default=37500.0),
-    Variable("a_max", "Largest acceleration of the PID's reference trajectory; default "
-             "(f_p_max - f_c_est)/(2*m_est), half what the force limit leaves over the "
-             "friction", "m/s2", None, min=0.0, min_open=True, max=1e6, optional=True,
-             kinds=("pid",), fmi_default=(300.0 - 80.0) / (2.0 * 150.0)),
-    Variable("v_max", "Largest speed of the PID's reference trajectory", "m/s", 0.05,
-             min=0.0, min_open=True, max=1e3, kinds=("pid",)),
-    Variable("hunt_max", "Reversals after which the PID, at rest nearer the target than the "
-             "maneuver started, stops (outcome stopped, reason hunting): a reversal is a rest "
-             "on the other side of the target than the last one", "", 4, type="Integer",
-             min=1, max=1_000_000, kinds=("pid",)),
-    Variable("m_d_est", "Motor mass of the flexible drive (the mode f_mode is that of the "
-             "motor on the coupling against the stuck table: k_t = m_d_est*(2*pi*f_mode)**2); "
-             "told f_mode, a pulse controller fires no pulse whose work on a motor of this "
-             "mass, given back by the spring, could sling the table farther than the maneuver "
-             "started", "kg", 50.0, min=1e-6, max=1e9, nominal=10.0,
-             kinds=("pwc", "papwc", "exact", "dual_loop")),
-    Variable("c_t_est", "Damping of the motor-table coupling the motor loop is designed with",
-             "N.s/m", 0.0, min=0.0, max=1e9, nominal=100.0, kinds=("dual_loop",)),
-    Variable("f_relax", "Largest force amplitude of the drive's ringing, k_t*sqrt(delta**2 + "
-             "(delta'/(2*pi*f_mode))**2) with delta = x_d_meas - x_meas, at which the drive "
-             "counts as relaxed (a pulse starts, a move is read, the maneuver settles only "
-             "from a relaxed drive)", "N", 2.0, min=0.0, min_open=True, max=1e9,
-             nominal=1.0, kinds=("dual_loop",)),
-    Variable("identify_mode", "With f_mode = 0: identify the drive's mode from the motor "
-             "encoder's free ringing (x_d_meas - x_meas while the table sticks) after a probe "
-             "(one sample of 0.4*f_c_est on the motor at the first sample, which friction "
-             "holds the table against) and build the motor loop on it, with m_d_est and "
-             "c_t_est; the table's encoder alone until then, and for good if no ringing "
-             "within 0.5 s or a mode above 0.25/T. False: f_mode = 0 means no motor loop",
-             "", False,
-             type="Boolean", kinds=("dual_loop",)),
 )
 
 def _below_f_p_max(name: str, strict: bool):
@@ -255,19 +191,19 @@ REFERENCE_OFFSET = Variable(
     nominal=0.01,
 )
 
-#: Controller kinds by number: ``KIND_CODES[n - 1]`` is the kind that ``kind_code = n``
-#: selects (the registry of :mod:`papwc.controllers` has exactly these kinds).
-KIND_CODES: tuple[str, ...] = ("pwc", "papwc", "exact", "pid", "dual_loop")
+def kind_code_variable(kind_codes: Sequence[str]) -> Variable:
+    """The controller kind as an Integer parameter of PulseController.fmu (``kind_code``).
 
-#: The controller kind as an Integer parameter of PulseController.fmu, for hosts and SSP
-#: readers that cannot set the String ``kind`` (fmpy, OMSimulator). 0 leaves the choice
-#: to ``kind``; a host that sets both must set them alike.
-KIND_CODE = Variable(
-    "kind_code", "Controller kind as a number, for hosts that cannot set Strings: 0 = as the "
-    "String kind says, " + ", ".join(f"{n} = {k}" for n, k in enumerate(KIND_CODES, 1))
-    + "; if kind is also set, both must name the same kind", "", 0, type="Integer", min=0,
-    max=len(KIND_CODES),
-)
+    For hosts and SSP readers that cannot set the String ``kind`` (fmpy, OMSimulator): 0
+    leaves the choice to ``kind``, ``n`` selects ``kind_codes[n - 1]``; a host that sets
+    both must set them alike.
+    """
+    return Variable(
+        "kind_code", "Controller kind as a number, for hosts that cannot set Strings: 0 = as "
+        "the String kind says, " + ", ".join(f"{n} = {k}" for n, k in enumerate(kind_codes, 1))
+        + "; if kind is also set, both must name the same kind", "", 0, type="Integer", min=0,
+        max=len(kind_codes),
+    )
 
 
 def kind_from_code(kind: str, kind_code: int, kind_set: bool) -> tuple[str, str | None]:
@@ -287,9 +223,10 @@ def kind_from_code(kind: str, kind_code: int, kind_set: bool) -> tuple[str, str 
     (str, str or None)
         The kind, and ``None`` or the message that refuses the pair.
     """
-    if kind_code == 0 or not 1 <= kind_code <= len(KIND_CODES):
+    codes = __getattr__("KIND_CODES")
+    if kind_code == 0 or not 1 <= kind_code <= len(codes):
         return kind, None
-    named = KIND_CODES[kind_code - 1]
+    named = codes[kind_code - 1]
     if kind_set and kind != named:
         return kind, (f"parameter kind = {kind!r} and kind_code = {kind_code} ({named!r}) "
                       "name different controllers: set only one of them, or both alike")
@@ -360,19 +297,95 @@ CONTROLLER_OUTPUTS: tuple[Variable, ...] = (
 )
 
 
-#: Boolean parameters ``<name>_given`` of PulseController.fmu, false by default: the computed
-#: default of an optional setting (``None`` in a scenario) or no bound on the pulse width
-#: (``t_p_max = inf``), the Real beside it not read; true, the Real is used. (A value the
-#: Real cannot hold, as -1 for "computed", would be one a host's range check cannot tell from
-#: a wrong value.)
-CONTROLLER_SWITCHES: tuple[Variable, ...] = switch_variables(CONTROLLER_SETTINGS)
+def assemble_settings(shared: Sequence[Variable],
+                      by_kind: Mapping[str, Sequence[Variable]]) -> tuple[Variable, ...]:
+    """The settings of every controller kind: ``shared``, then each kind's own, in order.
 
-#: Every variable of PulseController.fmu, in the order of its value references (the
-#: switches last, so that the other variables keep their value references).
-PULSE_CONTROLLER_VARIABLES: tuple[Variable, ...] = (
-    CONTROLLER_SETTINGS + (SAMPLE_PERIOD, KIND_CODE, REFERENCE_OFFSET) + CONTROLLER_INPUTS
-    + CONTROLLER_OUTPUTS + CONTROLLER_SWITCHES
-)
+    Parameters
+    ----------
+    shared : sequence of Variable
+        The settings every kind reads (:data:`SHARED_SETTINGS`), without ``kinds``.
+    by_kind : mapping of str to sequence of Variable
+        Each kind's own settings (its class's ``SETTINGS``), in the registry's order. A
+        setting that several kinds read is the same :class:`~papwc.model.variables.Variable`
+        in each of their tuples.
+
+    Returns
+    -------
+    tuple of Variable
+        The shared settings, then each kind's in the order of ``by_kind`` (a setting
+        listed by several kinds where the first lists it), each with ``kinds`` set to the
+        kinds that list it.
+
+    Raises
+    ------
+    ValueError
+        If two different settings have one name.
+    """
+    kinds: dict[str, list[str]] = {}
+    first: dict[str, Variable] = {v.name: v for v in shared}
+    for kind, own in by_kind.items():
+        for var in own:
+            known = first.setdefault(var.name, var)
+            if known is not var or var in shared:
+                raise ValueError(f"setting {var.name!r} of kind {kind!r} is declared twice")
+            kinds.setdefault(var.name, []).append(kind)
+    return tuple(first[name] if name not in kinds
+                 else dataclasses.replace(first[name], kinds=tuple(kinds[name]))
+                 for name in first)
+
+
+def _assembled() -> dict[str, Any]:
+    """The tables that depend on the registered kinds and their settings (once)."""
+    from ..controllers.registry import CONTROLLER_KINDS
+
+    kind_codes = tuple(CONTROLLER_KINDS)
+    settings = assemble_settings(SHARED_SETTINGS, {kind: CONTROLLER_KINDS[kind].SETTINGS
+                                                   for kind in CONTROLLER_KINDS})
+    switches = switch_variables(settings)
+    kind_code = kind_code_variable(kind_codes)
+    return {
+        "KIND_CODES": kind_codes,
+        "KIND_CODE": kind_code,
+        "CONTROLLER_SETTINGS": settings,
+        "CONTROLLER_SWITCHES": switches,
+        "PULSE_CONTROLLER_VARIABLES": (
+            settings + (SAMPLE_PERIOD, kind_code, REFERENCE_OFFSET) + CONTROLLER_INPUTS
+            + CONTROLLER_OUTPUTS + switches),
+    }
+
+
+#: The names :func:`__getattr__` assembles from the registry on first use.
+_LAZY = ("KIND_CODES", "KIND_CODE", "CONTROLLER_SETTINGS", "CONTROLLER_SWITCHES",
+         "PULSE_CONTROLLER_VARIABLES")
+
+
+def __getattr__(name: str) -> Any:
+    """The tables assembled from the registered controller kinds, on first use.
+
+    - ``KIND_CODES``: the kinds by number, in the registry's order:
+      ``KIND_CODES[n - 1]`` is the kind that PulseController.fmu's ``kind_code = n``
+      selects (a new kind is registered last, so the numbers of the others stay);
+    - ``KIND_CODE``: that parameter (:func:`kind_code_variable`);
+    - ``CONTROLLER_SETTINGS``: the settings of a ``[[controller]]`` table of any kind,
+      in the order of PulseController.fmu's value references (:func:`assemble_settings`
+      over :data:`SHARED_SETTINGS` and each registered kind's ``SETTINGS``);
+    - ``CONTROLLER_SWITCHES``: the Boolean parameters ``<name>_given`` of
+      PulseController.fmu, false by default: the computed default of an optional setting
+      (``None`` in a scenario) or no bound on the pulse width (``t_p_max = inf``), the
+      Real beside it not read; true, the Real is used;
+    - ``PULSE_CONTROLLER_VARIABLES``: every variable of PulseController.fmu in the order
+      of its value references (the switches last).
+
+    A kind's settings are declared in its own module (:mod:`papwc.controllers`), so these
+    are assembled from the registry the first time one is read, not when this module is
+    imported (the controllers import this module).
+    """
+    if name in _LAZY:
+        tables = _assembled()
+        globals().update(tables)
+        return tables[name]
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 def fmu_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
@@ -384,7 +397,7 @@ def fmu_parameters(values: Mapping[str, Any]) -> dict[str, Any]:
     Real and its switch true. Other settings are passed as they are.
     """
     out: dict[str, Any] = {}
-    for var in CONTROLLER_SETTINGS:
+    for var in __getattr__("CONTROLLER_SETTINGS"):
         if var.name not in values:
             continue
         value = values[var.name]
@@ -402,4 +415,4 @@ def settings_problems(values: Mapping[str, Any]) -> list[tuple[str, str]]:
     Only the values given are checked (the kind is checked against the
     registered controllers by :mod:`papwc.controllers`).
     """
-    return problems(CONTROLLER_SETTINGS, values, CONTROLLER_CONSTRAINTS)
+    return problems(__getattr__("CONTROLLER_SETTINGS"), values, CONTROLLER_CONSTRAINTS)
