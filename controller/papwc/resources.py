@@ -2,15 +2,15 @@
 
 Nothing here depends on the current folder. From a checkout (an editable
 install), the files are read in place: ``fmu_src/`` and ``scenarios/`` beside
-``controller/``. From a wheel, they are installed under
-``<prefix>/share/papwc/``.
+``controller/``. A wheel carries them as package data, ``papwc/_data/fmu_src/`` and
+``papwc/_data/scenarios/`` (copied there by the build, ``setup.py``), read through
+:mod:`importlib.resources`.
 """
 
 from __future__ import annotations
 
-import sys
-import sysconfig
 from functools import cache
+from importlib import resources
 from pathlib import Path
 
 from papwc.errors import PapwcError
@@ -42,13 +42,11 @@ def data_root() -> Path:
     root = checkout_root()
     if root is not None:
         return root
-    candidates = [Path(sysconfig.get_path("data")) / "share" / "papwc",
-                  Path(sys.prefix) / "share" / "papwc"]
-    for candidate in candidates:
-        if (candidate / _MARKER).is_file():
-            return candidate
-    raise PapwcError("the papwc data files (fmu_src/, scenarios/) were not found; looked in "
-                     + ", ".join(str(c) for c in candidates) + "; reinstall papwc")
+    installed = Path(str(resources.files("papwc") / "_data"))
+    if (installed / _MARKER).is_file():
+        return installed
+    raise PapwcError("the papwc data files (fmu_src/, scenarios/) were not found: not in a "
+                     f"checkout, and {installed} does not hold them; reinstall papwc")
 
 
 def fmu_src_dir() -> Path:

@@ -77,6 +77,7 @@ def test_two_settings_of_one_name_are_refused() -> None:
 
 
 def test_the_assembled_tables_are_made_once() -> None:
-    assert table.CONTROLLER_SETTINGS is CONTROLLER_SETTINGS
+    assert table.CONTROLLER_SETTINGS is table.CONTROLLER_SETTINGS
+    assert table.CONTROLLER_SETTINGS == CONTROLLER_SETTINGS
     with pytest.raises(AttributeError, match="has no attribute 'NO_SUCH_TABLE'"):
         table.NO_SUCH_TABLE  # noqa: B018

@@ -32,6 +32,7 @@ Every failure raises :class:`papwc.errors.BuildError` naming the FMU and the pro
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import html
 import os
@@ -42,7 +43,7 @@ import sys
 import tempfile
 import xml.etree.ElementTree as ET
 import zipfile
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,6 +60,7 @@ from papwc.model.variables import Variable
 
 __all__ = [
     "C_FLAGS",
+    "ZIG_VERSION",
     "FMI2_HEADERS",
     "TARGETS",
     "NativeSource",
@@ -66,6 +68,7 @@ __all__ = [
     "config_header",
     "fat_macho",
     "fmi_headers_dir",
+    "prepared_tree",
     "zig_command",
 ]
 
@@ -103,23 +106,38 @@ def fmi_headers_dir() -> Path:
 
 
 def zig_command() -> list[str]:
-    """The command of zig's C compiler (pip ``ziglang``)."""
-    try:
-        import ziglang  # noqa: F401
-    except ImportError as exc:
-        raise BuildError("the native FMUs are compiled with zig; install it: pip install "
-                         f"ziglang ({exc})") from exc
+    """The command of zig's C compiler (pip ``ziglang``, :data:`ZIG_VERSION`).
+
+    Raises
+    ------
+    BuildError
+        If zig is not installed, or another version than :data:`ZIG_VERSION` is.
+    """
+    found = zig_version()
+    if found != ZIG_VERSION:
+        why = ("zig is not installed" if found is None
+               else f"ziglang {found} is installed, which compiles other bytes")
+        raise BuildError(
+            "the FMU sources changed since papwc was installed, so its native FMUs must be "
+            f"compiled again, with ziglang {ZIG_VERSION}, and {why}: pip install "
+            f"'ziglang=={ZIG_VERSION}' (in a checkout: pip install -e '.[build]')")
     return [sys.executable, "-m", "ziglang", "cc"]
 
 
-def zig_version() -> str:
-    """The version of the installed zig (part of a native FMU's digest)."""
-    try:
-        from importlib.metadata import version
+#: The zig (pip ``ziglang``) the native FMUs are compiled with, pinned in pyproject.toml's
+#: build requirements and ``build`` extra: another version gives other bytes, so it is part
+#: of a native FMU's digest and a compile with another one is refused.
+ZIG_VERSION = "0.17.1"
 
+
+def zig_version() -> str | None:
+    """The version of the installed zig (pip ``ziglang``), or None if it is not installed."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
         return version("ziglang")
-    except Exception:  # noqa: BLE001 - metadata missing: the digest still covers the sources
-        return "unknown"
+    except PackageNotFoundError:
+        return None
 
 
 @dataclass(frozen=True)
@@ -196,7 +214,7 @@ class NativeSource:
             add("ref", Path(self.reference).read_bytes())
         add("extra", repr((list(self.variables), self.description, self.sections,
                            self.default_experiment, C_FLAGS, sorted(TARGETS.items()),
-                           zig_version(), _words(self.variables))).encode())
+                           ZIG_VERSION, _words(self.variables))).encode())
         add("builder", Path(__file__).read_bytes())
         return h.hexdigest()
 
@@ -523,6 +541,35 @@ def _fmi_header_notice(headers: Path) -> str:
 # --- the archive ------------------------------------------------------------------------------
 
 
+@contextlib.contextmanager
+def prepared_tree(source: NativeSource) -> Iterator[Path]:
+    """A temporary folder ``fmu/`` whose ``sources/`` holds everything the binaries of
+    ``source`` are compiled from: the glue and model C files, the FMI headers, the generated
+    headers and ``fmu_config.h`` (with the GUID made of the source's digest); removed after.
+    """
+    from papwc.fmubuild.pythonfmu_build import guid
+
+    headers = fmi_headers_dir()
+    work = Path(tempfile.mkdtemp(prefix="papwc_native_"))
+    try:
+        tree = work / "fmu"
+        sources = tree / "sources"
+        sources.mkdir(parents=True)
+        for path in source.c_files():
+            shutil.copyfile(path, sources / path.name)
+        for header in FMI2_HEADERS:
+            shutil.copyfile(headers / header, sources / header)
+        for file_name, text in source.generated().items():
+            (sources / file_name).write_text(text, encoding="utf-8")
+        (sources / "fmu_config.h").write_text(
+            config_header(source.name, guid(source.digest()), source.variables),
+            encoding="utf-8")
+        yield tree
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+
+
+
 def build_native(source: NativeSource, out_dir: Path) -> Path:
     """Compile ``source`` with zig for every platform, write its model description from the
     variable table, and check the archive with fmpy's validation.
@@ -549,26 +596,17 @@ def build_native(source: NativeSource, out_dir: Path) -> Path:
     """
     from fmpy.validation import validate_fmu
 
+    from papwc.fmubuild.prebuilt import take
     from papwc.fmubuild.pythonfmu_build import guid
 
     source.check()
     name = source.name
-    guid_text = guid(source.digest())
     headers = fmi_headers_dir()
-    work = Path(tempfile.mkdtemp(prefix="papwc_native_"))
-    try:
-        tree = work / "fmu"
-        sources = tree / "sources"
-        sources.mkdir(parents=True)
-        for path in source.c_files():
-            shutil.copyfile(path, sources / path.name)
-        for header in FMI2_HEADERS:
-            shutil.copyfile(headers / header, sources / header)
-        for file_name, text in source.generated().items():
-            (sources / file_name).write_text(text, encoding="utf-8")
-        (sources / "fmu_config.h").write_text(config_header(name, guid_text, source.variables),
-                                              encoding="utf-8")
-        compile_binaries(tree, name)
+    with prepared_tree(source) as tree:
+        work = tree.parent
+        guid_text = guid(source.digest())
+        if not take(tree, name):
+            compile_binaries(tree, name)
         docs = tree / "documentation"
         docs.mkdir()
         for doc in source.documentation:
@@ -586,7 +624,7 @@ def build_native(source: NativeSource, out_dir: Path) -> Path:
             "sources/fmi2Functions.h, fmi2FunctionTypes.h, fmi2TypesPlatform.h: the FMI 2.0 "
             "headers of the Modelica Association Project FMI (as shipped in fmpy)\n\n"
             + _fmi_header_notice(headers), encoding="utf-8")
-        c_sources = sorted(p.name for p in sources.glob("*.c"))
+        c_sources = sorted(p.name for p in (tree / "sources").glob("*.c"))
         root = model_description_skeleton(source, guid_text, c_sources)
         complete_model_description(root, source.variables, guid=guid_text,
                                    default_experiment=source.default_experiment,
@@ -603,5 +641,3 @@ def build_native(source: NativeSource, out_dir: Path) -> Path:
         if problems:
             raise BuildError(f"{built.name} is not valid: " + "; ".join(problems))
         return install_fmu(built, out_dir)
-    finally:
-        shutil.rmtree(work, ignore_errors=True)
