@@ -231,7 +231,14 @@ def parse_scenario(data: dict, source: str, allow: tuple[str, ...] = ()) -> Scen
 def field_table() -> str:
     """Every field of a scenario file with its unit, default and range, as a Markdown table.
 
-    Generated from the model layer's tables (the source of the defaults).
+    Generated from the model layer's tables (the source of the defaults); a ``|`` inside a
+    cell is written ``\\|``. The documentation site's reference includes it.
+
+    Returns
+    -------
+    str
+        Columns ``table, field, unit, default, allowed, description``; one row per field of
+        ``[plant]``, ``[maneuver]`` and ``[[controller]]``.
     """
     lines = ["| table | field | unit | default | allowed | description |",
              "|---|---|---|---|---|---|"]
@@ -245,8 +252,8 @@ def field_table() -> str:
         if var.kinds:
             table += " (" + ", ".join(var.kinds) + ")"
         unit = var.unit if var.unit not in ("", "1") else "-"
-        lines.append(f"| {table} | `{var.name}` | {unit} | {default} | {allowed} | "
-                     f"{var.description} |")
+        cells = (table, f"`{var.name}`", unit, default, allowed, var.description)
+        lines.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
 
     for var in PLANT_PARAMETERS:
         if var.name in SCENARIO_PLANT_FIELDS:
