@@ -33,9 +33,11 @@ extensions = [
     "sphinx.ext.autosummary",
     "sphinx.ext.mathjax",
     "numpydoc",
+    # before the gallery: its builder-inited runs papwc reproduce, which builds the plant FMU
+    # (on a fresh venv zig compiles its C runtimes then, once), before the tutorials run
+    "papwc_docs",
     "sphinx_gallery.gen_gallery",
     "sphinxarg.ext",
-    "papwc_docs",
 ]
 
 source_suffix = {".md": "markdown", ".rst": "restructuredtext"}

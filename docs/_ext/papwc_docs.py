@@ -13,9 +13,11 @@ seconds (``tutorial_seconds_max`` in conf.py), else the build fails naming it.
 
 from __future__ import annotations
 
+import argparse
 import re
 import subprocess
 import sys
+import textwrap
 import time
 from pathlib import Path
 
@@ -121,6 +123,24 @@ def on_build_finished(app: Sphinx, exception: Exception | None) -> None:
                                      f"over the {limit:.0f} s a tutorial may take")
 
 
+def cli_parser() -> argparse.ArgumentParser:
+    """``papwc``'s parser (:func:`papwc.cli.make_parser`) for sphinx-argparse.
+
+    Each subcommand's epilog is written for a terminal (examples laid out with spaces, as
+    ``RawDescriptionHelpFormatter`` prints them): here it becomes a literal block, the same
+    text, so reST keeps its layout. The parser of the command itself is unchanged.
+    """
+    from papwc.cli import make_parser
+
+    parser = make_parser()
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                if sub.epilog:
+                    sub.epilog = "::\n\n" + textwrap.indent(sub.epilog.strip("\n"), "    ")
+    return parser
+
+
 def setup(app: Sphinx) -> dict:
     """Register the build-time generation and the tutorials' time check."""
     app.add_config_value("tutorial_seconds_max", 30.0, "env")
@@ -129,5 +149,5 @@ def setup(app: Sphinx) -> dict:
     return {"version": "1", "parallel_read_safe": True, "parallel_write_safe": True}
 
 
-__all__ = ["generate_paper", "generate_tables", "paper_report", "setup", "tutorial_times",
-           "write_if_changed"]
+__all__ = ["cli_parser", "generate_paper", "generate_tables", "paper_report", "setup",
+           "tutorial_times", "write_if_changed"]
