@@ -89,11 +89,13 @@ html_css_files = ["papwc.css"]
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
-    "header_links_before_dropdown": 8,
+    "header_links_before_dropdown": 6,
+    "navbar_align": "left",
     "use_edit_page_button": False,
     "footer_start": ["copyright"],
     "footer_end": ["sphinx-version"],
 }
-html_sidebars = {"changelog": []}
+# pages without sections of their own: no left sidebar
+html_sidebars = {"changelog": [], "getting-started": [], "paper": []}
 html_show_sourcelink = False
 html_copy_source = False
