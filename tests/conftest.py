@@ -6,7 +6,10 @@
   line, batteries and Dask;
 - ``tests/studies/``: the studies beside the package (``papwc_studies``), marked ``study``
   and ``slow``: outside the quick loop and outside the default selection (pyproject's
-  ``-m "not study"``); ``pytest -m study`` runs them (CI does, after the suite).
+  ``-m "not study and not docs"``); ``pytest -m study`` runs them (CI does, after the suite);
+- ``tests/docs/``: the docstrings validated by numpydoc and the built documentation in a
+  browser, marked ``docs`` and ``slow``: outside the default selection; CI runs
+  ``pytest -m docs`` after building the site (they need the ``docs`` extra).
 
 The project's FMUs are built once per session by :func:`papwc.fmubuild.fmus.build_all`
 into a temporary folder (fixture ``fmu_dir``; FrictionPlant is the native FMU, compiled by
@@ -19,7 +22,7 @@ into this process (a loaded pythonfmu FMU puts its bundled ``pythonfmu`` copy in
 Tests marked ``libcosim`` or ``dask`` are skipped, not errors, when libcosimpy or dask
 is not installed (the ``cosim`` and ``dask`` extras). Every test under ``tests/unit/``
 is marked ``unit``, every test under ``tests/integration/`` ``integration``, every test
-under ``tests/studies/`` ``study``.
+under ``tests/studies/`` ``study``, every test under ``tests/docs/`` ``docs``.
 """
 
 from __future__ import annotations
@@ -55,7 +58,7 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
     for item in items:
         path = Path(str(item.path)).resolve()
         for folder, marker in (("unit", "unit"), ("integration", "integration"),
-                               ("studies", "study")):
+                               ("studies", "study"), ("docs", "docs")):
             if (TESTS_DIR / folder) in path.parents:
                 item.add_marker(getattr(pytest.mark, marker))
                 if folder != "unit":

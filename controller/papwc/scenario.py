@@ -69,7 +69,27 @@ TOP_LEVEL = ("name", "description", "plant", "maneuver", "controller")
 
 @dataclass
 class Scenario:
-    """A validated scenario."""
+    """A validated scenario: what :func:`load_scenario` returns.
+
+    Parameters
+    ----------
+    name : str
+        The scenario's name (names result files).
+    plant : dict of str to float
+        Every ``[plant]`` field, defaults filled in.
+    maneuver : Maneuver
+        The ``[maneuver]`` table.
+    controllers : list of ControllerSettings
+        One per ``[[controller]]`` table, in the file's order.
+    labels : list of str
+        The controllers' names in results (:func:`controller_label`), one per controller.
+    source : str
+        The file (or what else the scenario came from), for messages.
+    extra : dict
+        Further top-level tables the caller allowed (a battery's ``[sweep]``, ...).
+    warnings : list of (str, str)
+        Inputs that cannot work as meant but are allowed: (label, message).
+    """
 
     name: str
     plant: dict[str, float]
@@ -82,12 +102,42 @@ class Scenario:
     warnings: list[tuple[str, str]] = field(default_factory=list)
 
     def warnings_of(self, label: str) -> str:
-        """The warnings about controller ``label``, joined by ``"; "``."""
+        """The warnings about one controller.
+
+        Parameters
+        ----------
+        label : str
+            The controller's label.
+
+        Returns
+        -------
+        str
+            Its warnings joined by ``"; "`` (empty if none).
+        """
         return "; ".join(message for who, message in self.warnings if who == label)
 
 
 def controller_label(settings: ControllerSettings, label: str | None = None) -> str:
-    """Name of a controller in results: its label, or kind and t_p_max."""
+    """Name of a controller in results.
+
+    Parameters
+    ----------
+    settings : ControllerSettings
+        The controller's settings.
+    label : str, optional
+        The ``label`` of its table, if it has one.
+
+    Returns
+    -------
+    str
+        ``label``, or ``<kind>_tpmax_<t_p_max>`` (``inf`` for no bound).
+
+    Examples
+    --------
+    >>> from papwc.controllers.settings import ControllerSettings
+    >>> controller_label(ControllerSettings(kind="papwc", t_p_max=0.03))
+    'papwc_tpmax_0.03'
+    """
     if label:
         return label
     t = settings.t_p_max
@@ -97,16 +147,48 @@ def controller_label(settings: ControllerSettings, label: str | None = None) -> 
 def load_scenario(path: str | os.PathLike) -> Scenario:
     """Read and validate a scenario file.
 
+    Parameters
+    ----------
+    path : path
+        The scenario file (TOML, UTF-8, at most :data:`~papwc.limits.MAX_INPUT_BYTES`).
+
+    Returns
+    -------
+    Scenario
+        Every field with its default filled in, checked against the model layer's ranges
+        and the rules between fields.
+
     Raises
     ------
     ScenarioError
         With the file, the table and the field that are wrong, and what is allowed.
+
+    Examples
+    --------
+    >>> from papwc.resources import scenario_file
+    >>> scenario = load_scenario(scenario_file("paper.toml"))
+    >>> scenario.labels
+    ['pwc_tpmax_0.03', 'pwc_tpmax_inf', 'papwc_tpmax_0.03', 'papwc_tpmax_inf']
+    >>> scenario.maneuver.x_ref, scenario.maneuver.iterations, scenario.plant["f_s"]
+    (0.01, 10, 130.0)
     """
     return parse_scenario(read_toml(path, "scenario"), str(path))
 
 
 def read_toml(path: str | os.PathLike, what: str = "scenario") -> dict:
     """Read a TOML file as UTF-8 text.
+
+    Parameters
+    ----------
+    path : path
+        The file.
+    what : str
+        What the file is, for messages (``"scenario"``, ``"battery"``).
+
+    Returns
+    -------
+    dict
+        The TOML document.
 
     Raises
     ------
@@ -143,11 +225,40 @@ def _first(source: str, where: str, problems: list[tuple[str, str]]) -> None:
 
 
 def parse_scenario(data: dict, source: str, allow: tuple[str, ...] = ()) -> Scenario:
-    """Validate a scenario given as a mapping (``source`` names it in errors).
+    """Validate a scenario given as a mapping (a TOML document read).
 
-    ``allow`` lists further top-level tables that the caller handles (e.g.
-    ``sweep`` and ``monte_carlo`` of a battery file); they are returned in
-    ``Scenario.extra``.
+    Parameters
+    ----------
+    data : dict
+        The top-level tables and fields.
+    source : str
+        What names the scenario in errors (its file).
+    allow : tuple of str
+        Further top-level tables that the caller handles (e.g. ``sweep`` and
+        ``monte_carlo`` of a battery file); they are returned in ``Scenario.extra``.
+
+    Returns
+    -------
+    Scenario
+        Every field with its default filled in.
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``source``, the table, the field, the value and what is allowed.
+
+    Examples
+    --------
+    >>> scenario = parse_scenario({"plant": {"m": 120.0},
+    ...                            "controller": [{"kind": "exact", "tolerance": 1e-7}]},
+    ...                           "example")
+    >>> scenario.plant["m"], scenario.plant["c"], scenario.labels
+    (120.0, 700.0, ['exact_tpmax_inf'])
+    >>> parse_scenario({"plant": {"m": -1.0}, "controller": [{"kind": "exact"}]},
+    ...                "bad")  # doctest: +ELLIPSIS
+    Traceback (most recent call last):
+    ...
+    papwc.errors.ScenarioError: bad: [plant] field 'm': m = -1.0 kg: must satisfy 1e-06 <= m ...
     """
     for key in data:
         if key not in TOP_LEVEL and key not in allow:
@@ -231,7 +342,14 @@ def parse_scenario(data: dict, source: str, allow: tuple[str, ...] = ()) -> Scen
 def field_table() -> str:
     """Every field of a scenario file with its unit, default and range, as a Markdown table.
 
-    Generated from the model layer's tables (the source of the defaults).
+    Generated from the model layer's tables (the source of the defaults); a ``|`` inside a
+    cell is written ``\\|``. The documentation site's reference includes it.
+
+    Returns
+    -------
+    str
+        Columns ``table, field, unit, default, allowed, description``; one row per field of
+        ``[plant]``, ``[maneuver]`` and ``[[controller]]``.
     """
     lines = ["| table | field | unit | default | allowed | description |",
              "|---|---|---|---|---|---|"]
@@ -245,8 +363,8 @@ def field_table() -> str:
         if var.kinds:
             table += " (" + ", ".join(var.kinds) + ")"
         unit = var.unit if var.unit not in ("", "1") else "-"
-        lines.append(f"| {table} | `{var.name}` | {unit} | {default} | {allowed} | "
-                     f"{var.description} |")
+        cells = (table, f"`{var.name}`", unit, default, allowed, var.description)
+        lines.append("| " + " | ".join(cell.replace("|", "\\|") for cell in cells) + " |")
 
     for var in PLANT_PARAMETERS:
         if var.name in SCENARIO_PLANT_FIELDS:

@@ -73,7 +73,7 @@ def _last(result):
 
 
 def _adaptation_per_pulse(trace, n_pulses: int) -> float:
-    """Mean |change of b_hat| per pulse over the first ``n_pulses`` pulses of a trace."""
+    """Mean ``|change of b_hat|`` per pulse over the first ``n_pulses`` pulses of a trace."""
     b = trace.column("b_hat")
     pulses = trace.column("pulses")
     k = next((i for i, p in enumerate(pulses) if p > n_pulses), len(pulses) - 1)

@@ -51,7 +51,7 @@ def sign_switches(trace: Trace) -> int:
 
 
 def adaptation_per_pulse(trace: Trace, n_pulses: int = FIRST_PULSES) -> float:
-    """Mean |change of b_hat| per pulse over the first ``n_pulses`` pulses, m/s**2.
+    """Mean ``|change of b_hat|`` per pulse over the first ``n_pulses`` pulses, m/s**2.
 
     The change of pulse k is b_hat when pulse k+1 starts (the estimate it was
     planned with) minus b_hat when pulse k started; after the last pulse, the
@@ -93,7 +93,7 @@ class RunMetrics:
     b_hat : float
         Estimate at the end, m/s**2.
     adaptation : float
-        Mean |change of b_hat| per pulse over the first pulses of iteration 1, m/s**2.
+        Mean ``|change of b_hat|`` per pulse over the first pulses of iteration 1, m/s**2.
     """
 
     label: str

@@ -115,9 +115,9 @@ Outputs of :func:`run_battery` in the output folder:
   median and p95, runaway pulses at abs(e) >= 1 um and below, the largest runaway move,
   maneuvers that ended farther, false ``settled``, ``time_ended``.
 - ``summary.md`` -- per battery (and case) and controller: success rate, median,
-  95th percentile and maximum of |final error|, pulses and settle time, in the
+  95th percentile and maximum of ``|final error|``, pulses and settle time, in the
   last iteration; then the spec table (``spec.csv``).
-- ``final_error_<battery>.png`` -- distribution (empirical CDF) of |final error|
+- ``final_error_<battery>.png`` -- distribution (empirical CDF) of ``|final error|``
   per controller on a log axis.
 
 Its modules: :mod:`.schema` (the file), :mod:`.plan` (cases, grid and draws), :mod:`.worker`

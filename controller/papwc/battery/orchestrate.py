@@ -29,7 +29,7 @@ PLAIN_PROGRESS_S = 10.0
 class BatteryOutcome:
     """What :func:`run_battery` did.
 
-    Attributes
+    Parameters
     ----------
     runs : int
         Runs in the batteries.
@@ -41,11 +41,11 @@ class BatteryOutcome:
         Files written.
     seconds : float
         Wall time of the call.
-    records : dict
-        The journal record of every run, by (battery, run id).
     run_seconds : float
         Wall time of the computing (starting the workers or connecting to the
         cluster, up to the last run finished).
+    records : dict
+        The journal record of every run, by (battery, run id).
     """
 
     runs: int
@@ -60,7 +60,7 @@ class BatteryOutcome:
 class BatteryInterrupted(KeyboardInterrupt):
     """Ctrl-C stopped a battery; the runs that finished are in the journal.
 
-    Attributes
+    Parameters
     ----------
     done, total : int
         Runs in the journal, runs of the batteries.
@@ -87,7 +87,13 @@ _RESULT_CODE = ("model", "controllers", "master", "scenario_run.py", "scenario.p
 
 
 def code_digest() -> str:
-    """SHA-256 of the papwc sources that compute a battery run (not the FMU's)."""
+    """The digest of the code that computes a battery run.
+
+    Returns
+    -------
+    str
+        SHA-256 (hex) of the papwc sources that compute a run in a worker (not the FMU's).
+    """
     root = Path(__file__).resolve().parent.parent
     h = hashlib.sha256()
     for name in _RESULT_CODE:
@@ -100,7 +106,18 @@ def code_digest() -> str:
 
 
 def result_key(fmu_guid: str) -> str:
-    """Key of what determines a run's results: the FMU's model identity and papwc's code."""
+    """The key of what determines a run's results, which keys the journal.
+
+    Parameters
+    ----------
+    fmu_guid : str
+        The plant FMU's GUID (a digest of its sources).
+
+    Returns
+    -------
+    str
+        32 hex digits of the FMU's identity, papwc's version and :func:`code_digest`.
+    """
     from papwc import __version__
 
     text = json.dumps([fmu_guid, __version__, code_digest()])
@@ -147,11 +164,40 @@ def run_battery(
     Returns
     -------
     BatteryOutcome
+        The runs, those computed now, those that failed, the files written, the times.
 
     Raises
     ------
     BatteryInterrupted
         On Ctrl-C: the runs that finished are in the journal (``--resume``).
+    BatteryError
+        For an FMU that cannot be used, or batteries over the limits, before any run.
+
+    Examples
+    --------
+    Two draws of the plant's mass, one controller, one iteration, on the native plant FMU
+    built into a temporary folder (what ``papwc battery FILE --workers 1`` does):
+
+    >>> import csv, tempfile
+    >>> from pathlib import Path
+    >>> from papwc.battery.schema import parse_battery
+    >>> from papwc.fmubuild.fmus import build_fmu
+    >>> battery = parse_battery({
+    ...     "name": "tiny", "maneuver": {"iterations": 1},
+    ...     "controller": [{"kind": "exact", "label": "exact", "tolerance": 1e-7}],
+    ...     "monte_carlo": {"n": 2, "seed": 1, "plant.m": {"dist": "uniform", "rel": 0.2}},
+    ... }, "tiny.toml")
+    >>> tmp = tempfile.TemporaryDirectory()
+    >>> out = Path(tmp.name)
+    >>> fmu = build_fmu("FrictionPlant", out / "fmu")
+    >>> outcome = run_battery([battery], out / "tiny", fmu, workers=1, progress=False)
+    >>> outcome.runs, outcome.computed, outcome.failed
+    (2, 2, [])
+    >>> with open(out / "tiny" / "results.csv", newline="") as f:
+    ...     rows = list(csv.DictReader(f))
+    >>> [row["success"] for row in rows]
+    ['True', 'True']
+    >>> tmp.cleanup()
     """
     start = time.perf_counter()
     start_clock = time.monotonic()

@@ -355,7 +355,7 @@ def _safety_cells(cr: list[dict], ar: list[dict]) -> str:
 
 
 def plot_final_errors(battery: Battery, rows: list[dict], path: Path) -> None:
-    """Empirical CDF of |final error| per controller (last iteration), log x axis, as PNG."""
+    """Empirical CDF of ``|final error|`` per controller (last iteration), log x axis, as PNG."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 

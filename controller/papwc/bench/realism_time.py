@@ -29,7 +29,7 @@ def _run(battery, fmu: Path) -> tuple[object, float, list[dict[str, str]]]:
 
 
 def max_difference(a: list[dict[str, str]], b: list[dict[str, str]]) -> float:
-    """Largest |difference| between two results.csv (inf where a text or a row differs)."""
+    """Largest abs(difference) between two results.csv (inf where a text or a row differs)."""
     if len(a) != len(b):
         return float("inf")
     worst = 0.0

@@ -3,7 +3,7 @@
 A pulse controller is built from three parts, each a class with named state:
 
 * :class:`~.rest.RestDetector`: band, dwell, noise estimate, averaged reading;
-* :class:`~.trust.TrustRegion`: how far a planned pulse may go, as a fraction of |e|;
+* :class:`~.trust.TrustRegion`: how far a planned pulse may go, as a fraction of abs(e);
 * :class:`~.sequencer.PulseSequencer`: coarse move, hand-over, pulse and wait,
   safeguards, outcome (see that module for the sequence of a maneuver).
 

@@ -641,9 +641,9 @@ class ExactController(PulseControllerBase):
         While the model is not to be trusted (a missed pulse with a relative
         error of 50 % or more, or three pulses in a row missed by more than
         100 %) only the smallest pulse toward the target is planned, if it is
-        predicted to move at most |e|; after a one-sample pulse that moved less
+        predicted to move at most abs(e); after a one-sample pulse that moved less
         than the rest band, one sample ``1 + _PROBE_STEP`` times as high, if it
-        is predicted to move at most |e|.
+        is predicted to move at most abs(e).
 
         Refuses (height 0; the controller stops, see :attr:`refusal`) when e is
         not finite, when ``max_pulses`` pulses have been applied in this

@@ -109,7 +109,7 @@ class PulseModelEstimator:
         #: Highest height known not to move the mass and lowest known to move it, N.
         self.f_s_lo = 0.0
         self.f_s_hi = self.f_p_max
-        #: Pulses (n, |f_p| in N, displacement along f_p in m), oldest first.
+        #: Pulses (n, abs(f_p) in N, displacement along f_p in m), oldest first.
         self.pulses: list[tuple[int, float, float]] = []
         #: Relative misfit of the model over the history beyond the measurement
         #: resolution (root mean square, at least ``_MISFIT_MIN``).
@@ -315,7 +315,7 @@ class PulseModelEstimator:
     # -- state -------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
         """Everything that evolves, by name: ``theta`` (3 numbers), ``f_s_lo``, ``f_s_hi``
-        (N), ``rel_misfit`` and ``pulses`` (n, |f_p|, d of each, flat, oldest first)."""
+        (N), ``rel_misfit`` and ``pulses`` (n, abs(f_p), d of each, flat, oldest first)."""
         return {"theta": [float(v) for v in self.theta], "f_s_lo": self.f_s_lo,
                 "f_s_hi": self.f_s_hi, "rel_misfit": self.rel_misfit,
                 "pulses": [float(v) for p in self.pulses for v in p]}

@@ -66,8 +66,18 @@ class Reason:
 
 
 def default_outputs() -> dict[str, Any]:
-    """Outputs of a controller that cannot be made (invalid settings): integer outputs at
-    their start values, real ones NaN."""
+    """Outputs of a controller that cannot be made (invalid settings).
+
+    Returns
+    -------
+    dict of str to float or int
+        By :data:`OUTPUT_NAMES`: integer outputs at their start values, real ones NaN.
+
+    Examples
+    --------
+    >>> default_outputs()["pulses"], default_outputs()["b_hat"]
+    (0, nan)
+    """
     return {v.name: (v.default if v.type == "Integer" else math.nan)
             for v in CONTROLLER_OUTPUTS if v.name != "u"}
 
@@ -91,6 +101,20 @@ class Controller:
         and rules of :data:`papwc.model.controller_settings.CONTROLLER_SETTINGS`.
     T : float
         Sample period, s: :meth:`update` is called once every T.
+
+    Examples
+    --------
+    A controller is made from its settings by the registry; the host calls :meth:`update`
+    once a sample with the measured position and reads :meth:`outputs`:
+
+    >>> from papwc.controllers import make_controller
+    >>> from papwc.controllers.settings import ControllerSettings
+    >>> controller = make_controller(ControllerSettings(kind="papwc"), T=0.01)
+    >>> u = controller.update(0.0, 0.0, 0.01)  # t (s), x_meas (m), x_ref (m)
+    >>> 0.0 < u <= controller.settings.f_p_max  # the coarse move pushes toward the target
+    True
+    >>> sorted(controller.outputs()) == sorted(OUTPUT_NAMES)
+    True
     """
 
     kind = "base"
@@ -116,8 +140,22 @@ class Controller:
 
     # -- to implement ------------------------------------------------------------------
     def update(self, t: float, x_meas: float, x_ref: float) -> float:
-        """Force u (N) to hold over the next sample, from the time t (s), the measured
-        position x_meas (m) and the reference x_ref (m)."""
+        """The force to hold over the next sample.
+
+        Parameters
+        ----------
+        t : float
+            Time of the sample, s.
+        x_meas : float
+            Measured position, m (the encoder's reading, never the true position).
+        x_ref : float
+            Reference (target) position, m.
+
+        Returns
+        -------
+        float
+            Force u, N, held over [t, t + T].
+        """
         raise NotImplementedError
 
     def reset(self) -> None:
@@ -125,7 +163,13 @@ class Controller:
         raise NotImplementedError
 
     def estimates(self) -> dict[str, float]:
-        """Current estimates for recording: at least ``b_hat`` (m/s**2) and ``f_c_hat`` (N)."""
+        """Current estimates, for recording.
+
+        Returns
+        -------
+        dict of str to float
+            At least ``b_hat`` (m/s**2) and ``f_c_hat`` (N); NaN where the kind has none.
+        """
         return {"b_hat": math.nan, "f_c_hat": math.nan}
 
     #: Lowest pulse height it plans with now, N (NaN: it does not pulse).
@@ -136,15 +180,31 @@ class Controller:
         raise NotImplementedError
 
     def set_state(self, values: Mapping[str, Any]) -> None:
-        """Restore a state returned by :meth:`state` (ValueError/KeyError if it does not fit)."""
+        """Restore a state returned by :meth:`state`.
+
+        Parameters
+        ----------
+        values : mapping of str to number or list of numbers
+            A state of this kind, as :meth:`state` returned it.
+
+        Raises
+        ------
+        ValueError, KeyError
+            If the state does not fit (other names, values of another shape).
+        """
         raise NotImplementedError
 
     # -- read by the slave, the FMU and the trace --------------------------------------
     def outputs(self) -> dict[str, float]:
-        """The outputs after the last sample, keyed by :data:`OUTPUT_NAMES`.
+        """The outputs after the last sample.
 
         An output named among :meth:`estimates` (or ``f_low``) is read from them
         (again only once ``revision`` changed), any other is the attribute of its name.
+
+        Returns
+        -------
+        dict of str to float
+            Keyed by :data:`OUTPUT_NAMES`, in their order.
         """
         if self._cached_revision != self.revision:
             cached = self.estimates()
@@ -162,5 +222,16 @@ class Controller:
 
     @classmethod
     def trust0(cls, settings: ControllerSettings) -> float:
-        """Trust region of a new controller: ``trust0`` if its kind reads it, else 1."""
+        """Trust region of a new controller of this kind.
+
+        Parameters
+        ----------
+        settings : ControllerSettings
+            The controller's settings.
+
+        Returns
+        -------
+        float
+            ``settings.trust0`` if the kind reads that setting, else 1.
+        """
         return float(settings.trust0) if "trust0" in settings_for_kind(cls.kind) else 1.0

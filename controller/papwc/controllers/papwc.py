@@ -228,7 +228,7 @@ class PapwcController(PulseControllerBase):
         return eq4
 
     def predict(self, n: int, f_p: float) -> float:
-        """Eq. (4) with Eq. (12): ``(A1*f_p**2 - A2*f_p)*(n*T)**2`` at |f_p| (>= 0), m."""
+        """Eq. (4) with Eq. (12): ``(A1*f_p**2 - A2*f_p)*(n*T)**2`` at abs(f_p) (>= 0), m."""
         t = n * self.T
         a1, a2 = self.estimator.a
         f = abs(f_p)
@@ -285,7 +285,7 @@ class PapwcController(PulseControllerBase):
             self.creeps = (0.0, 0.0, 0.0, 0.0)
 
     def _raise_floor(self, f_p: float) -> None:
-        """Lift the amplitude floor to ``1 + floor_raise`` times |f_p| (N), at most f_p_max."""
+        """Lift the amplitude floor to ``1 + floor_raise`` times abs(f_p) (N), at most f_p_max."""
         self.f_p_floor = min(max(self.f_p_floor, abs(f_p) * (1.0 + self.settings.floor_raise)),
                              self.settings.f_p_max)
 

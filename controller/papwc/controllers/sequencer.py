@@ -78,16 +78,16 @@ M_D_EST = (
 
 __all__ = ["PRECISION_MIN", "X_LIMIT", "Z_ACT", "Z_DECIDE", "Law", "PulseSequencer"]
 
-#: Largest |position| read as one, m: beyond it (or NaN) a reading is invalid and the
+#: Largest absolute position read as one, m: beyond it (or NaN) a reading is invalid and the
 #: controller stops (its sums of squares stay finite).
 X_LIMIT = 1e6
 #: Confidence of the decisions on averaged readings (standard errors): settled only with
-#: |e| + Z_DECIDE*s <= tolerance, a pulse only for |e| > Z_DECIDE*s.
+#: abs(e) + Z_DECIDE*s <= tolerance, a pulse only for abs(e) > Z_DECIDE*s.
 Z_DECIDE = 3.0
 #: A pulse is planned once the error is known to Z_ACT*s within the tolerance (or within
 #: the precision of the pulse).
 Z_ACT = 2.5
-#: The runaway bound's factor: a pulse should move at most RUNAWAY_FACTOR*|e| (plus a count).
+#: The runaway bound's factor: a pulse should move at most RUNAWAY_FACTOR*abs(e) (plus a count).
 RUNAWAY_FACTOR = 1.5
 #: On a machine with a mode, a sample may move this many times the most one has moved.
 RING_MARGIN = 2.0

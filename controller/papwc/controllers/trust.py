@@ -1,4 +1,4 @@
-"""The trust region of a pulse controller: how far a planned pulse may go, as a fraction of |e|.
+"""The trust region of a pulse controller: how far a planned pulse may go, as a fraction of abs(e).
 
 A control law plans a pulse to move at most ``trust*|e|``. The trust starts at the
 controller's ``trust0`` (1 for a kind that does not read that setting), doubles
@@ -33,7 +33,7 @@ TRUST_FLEXIBLE = 0.5
 
 
 class TrustRegion:
-    """The largest planned displacement as a fraction of |e| (<= 1).
+    """The largest planned displacement as a fraction of abs(e) (<= 1).
 
     Parameters
     ----------

@@ -1,13 +1,15 @@
-"""The tables of the readmes, written from the model layer.
+"""The tables of the readmes and of the documentation site, written from the model layer.
 
 Each ``fmu_src/<Model>/readme.md`` holds its FMU's variable table between the
 lines ``<!-- variables: begin -->`` and ``<!-- variables: end -->``; the table is
 made from the FMU's recipe (:data:`papwc.fmubuild.fmus.FMUS`), so a parameter
 added to the model layer appears in the readme as it does in the model
-description. The project README (in a source checkout) holds the scenario
-fields between ``<!-- fields: begin -->`` and ``<!-- fields: end -->``
-(:func:`papwc.scenario.field_table`). ``python -m papwc.fmubuild.docs``
-rewrites the tables; ``--check`` only says which file differs (a test runs it).
+description. ``python -m papwc.fmubuild.docs`` rewrites those tables; ``--check``
+only says which file differs (a test runs it).
+
+The documentation site (``docs/``) makes its reference tables at build time from
+:func:`docs_tables`: every scenario field (:func:`papwc.scenario.field_table`) and each
+FMU's variables.
 """
 
 from __future__ import annotations
@@ -22,9 +24,9 @@ from papwc.errors import BuildError
 from papwc.fmubuild.fmus import FMUS
 from papwc.fmubuild.model_description import xml_number
 from papwc.model.variables import Variable
-from papwc.resources import checkout_root
 
-__all__ = ["readme_tables", "sync_readmes", "variable_table", "with_table"]
+__all__ = ["docs_tables", "escape_cell", "readme_tables", "sync_readmes", "variable_table",
+           "with_table"]
 
 
 def _start(var: Variable) -> str:
@@ -35,8 +37,22 @@ def _start(var: Variable) -> str:
     return xml_number(var.fmi_start)
 
 
-def variable_table(variables: Sequence[Variable]) -> str:
-    """The Markdown table of an FMU's variables: name, causality, type, unit, start, range."""
+def variable_table(variables: Sequence[Variable], escape_bars: bool = False) -> str:
+    """The Markdown table of an FMU's variables: name, causality, type, unit, start, range.
+
+    Parameters
+    ----------
+    variables : sequence of Variable
+        The FMU's variables, in the model description's order.
+    escape_bars : bool
+        Write a ``|`` inside a cell as ``\\|`` (the documentation site's tables; the
+        readmes keep theirs as they are).
+
+    Returns
+    -------
+    str
+        The table, one line per variable after the header.
+    """
     lines = ["| name | causality | type | unit | start | allowed | description |",
              "|---|---|---|---|---|---|---|"]
     for var in variables:
@@ -48,8 +64,11 @@ def variable_table(variables: Sequence[Variable]) -> str:
                         + ("the default" if var.optional else "no bound"))
         kinds = f" (kinds: {', '.join(var.kinds)})" if var.kinds else ""
         unit = var.unit if var.unit not in ("", "1") else "–"
+        allowed, description = allowed or "–", f"{var.description}{kinds}"
+        if escape_bars:
+            allowed, description = escape_cell(allowed), escape_cell(description)
         lines.append(f"| `{var.name}` | {var.causality} | {var.type} | {unit} | {_start(var)} "
-                     f"| {allowed or '–'} | {var.description}{kinds} |")
+                     f"| {allowed} | {description} |")
     return "\n".join(lines)
 
 
@@ -63,16 +82,41 @@ def with_table(text: str, table: str, tag: str, where: str) -> str:
     return f"{head}{begin}\n{table}\n{end}{tail}"
 
 
+def escape_cell(text: str) -> str:
+    """``text`` fit for a cell of a Markdown table: every ``|`` written ``\\|``."""
+    return text.replace("|", "\\|")
+
+
 def readme_tables() -> list[tuple[Path, str, str]]:
-    """Each readme with a generated table: (path, tag, table)."""
+    """Each FMU readme with a generated table: (path, tag, table)."""
+    return [(recipe.folder / "readme.md", "variables", variable_table(recipe.variables))
+            for recipe in FMUS if (recipe.folder / "readme.md").is_file()]
+
+
+def docs_tables() -> dict[str, str]:
+    """The tables the documentation site includes, by name.
+
+    Returns
+    -------
+    dict of str to str
+        ``"fields"``: every field of a scenario file (:func:`papwc.scenario.field_table`);
+        ``"variables-<FMU>"``: the variables of each FMU of :data:`~papwc.fmubuild.fmus.FMUS`.
+        Each a Markdown table whose cells escape ``|``.
+
+    Examples
+    --------
+    >>> tables = docs_tables()
+    >>> sorted(tables)[:2]
+    ['fields', 'variables-FrictionPlant']
+    >>> "| [plant] | `m` | kg | 150.0 |" in tables["fields"]
+    True
+    """
     from papwc.scenario import field_table
 
-    found = [(recipe.folder / "readme.md", "variables", variable_table(recipe.variables))
-             for recipe in FMUS if (recipe.folder / "readme.md").is_file()]
-    root = checkout_root()
-    if root is not None and (root / "README.md").is_file():
-        found.append((root / "README.md", "fields", field_table()))
-    return found
+    tables = {"fields": field_table()}
+    for recipe in FMUS:
+        tables[f"variables-{recipe.name}"] = variable_table(recipe.variables, escape_bars=True)
+    return tables
 
 
 def sync_readmes(check: bool = False) -> list[Path]:

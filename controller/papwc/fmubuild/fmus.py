@@ -5,13 +5,13 @@ result) plus a bundle of the project's own packages, copied under a package
 name that no other FMU uses (pythonfmu FMUs in one process share one Python
 interpreter, and modules of the same name would shadow each other):
 
-================= ======================== ==========================================
-FMU               bundle package           bundled subpackages of papwc
-================= ======================== ==========================================
-FrictionPlant     ``papwc_friction_plant`` ``model`` (physics, variables), ``fmi``
+================= ========================== ==========================================
+FMU               bundle package             bundled subpackages of papwc
+================= ========================== ==========================================
+FrictionPlant     ``papwc_friction_plant``   ``model`` (physics, variables), ``fmi``
 PulseController   ``papwc_pulse_controller`` ``model``, ``controllers``, ``fmi``
-PapwcTrivial      (none)                   (none: the floor ``papwc bench`` measures)
-================= ======================== ==========================================
+PapwcTrivial      (none)                     (none: the floor ``papwc bench`` measures)
+================= ========================== ==========================================
 
 FrictionPlant is also written in C (``fmu_src/FrictionPlant/*.c`` with the FMI glue of
 ``fmu_src/fmi2/``), built by :mod:`.native_build` for win64, linux64 and darwin64: that

@@ -8,6 +8,18 @@ error through :class:`papwc.model.dynamics.Plant` with the force replayed, and t
 the data support are added (:mod:`.fit`). :mod:`.excitation` designs the force to apply to a
 machine and applies it to a plant or an FMU; :mod:`.fit_report` writes ``plant.toml``,
 ``identified.csv``, ``report.md`` and its figures.
+
+Examples
+--------
+The excitation's defaults, which ``papwc identify --design`` and ``--fmu`` use:
+
+>>> from papwc.identify import DESIGN_DURATION, DESIGN_F_P_MAX, DESIGN_T, DESIGN_TRAVEL
+>>> DESIGN_T, DESIGN_F_P_MAX, DESIGN_TRAVEL, DESIGN_DURATION
+(0.01, 300.0, 0.05, 60.0)
+
+From a log to a plant in Python: :func:`papwc.identify.log_file.read_log`, then
+:func:`papwc.identify.fit.identify` (its example runs the whole path); from the command
+line, ``papwc identify machine.csv --out id/``.
 """
 
 from papwc.errors import PapwcError

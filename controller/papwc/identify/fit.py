@@ -420,10 +420,39 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
              progress: Callable[[str], None] | None = None) -> Identification:
     """Identify the plant of ``log`` (see the module's description).
 
+    Parameters
+    ----------
+    log : Log
+        A checked log (:func:`papwc.identify.log_file.read_log`).
+    deviations : sequence of str
+        The deviations to try beyond Eq. (1): ``"stribeck"``, ``"lag"``, or none.
+    progress : callable, optional
+        Called with a line of text at each stage (``papwc identify`` prints them).
+
+    Returns
+    -------
+    Identification
+        The identified ``plant`` parameters, each ``estimates`` entry with its 95 %
+        interval, the models tried, the replay of the log and its residual.
+
     Raises
     ------
     LogError
         If the log holds no motion, no breakaway, or too few sliding samples.
+
+    Examples
+    --------
+    The default excitation applied to Table 1's plant (m = 150 kg, f_c = 100 N,
+    f_s = 130 N, c = 700 N.s/m), read through an ideal encoder, identified with Eq. (1):
+
+    >>> from papwc.identify.excitation import apply_to_plant, design
+    >>> u = design(h=0.01, f_p_max=300.0, travel=0.05, duration=60.0)
+    >>> log = apply_to_plant(u, 0.01, {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0})
+    >>> found = identify(log, deviations=())
+    >>> {name: round(found.plant[name], 6) for name in ("m", "f_c", "c")}
+    {'m': 150.0, 'f_c': 100.0, 'c': 700.0}
+    >>> abs(found.plant["f_s"] - 130.0) <= 0.01 * 130.0, found.chosen
+    (True, [])
     """
     say = progress or (lambda text: None)
     began = time.perf_counter()

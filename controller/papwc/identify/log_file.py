@@ -105,6 +105,19 @@ class Log:
 def read_log(path: str | os.PathLike, columns: Columns = Columns()) -> Log:
     """Read and check the log CSV at ``path``.
 
+    Parameters
+    ----------
+    path : path
+        The log: CSV with a header; time (s), force (N, held from its row to the next),
+        table position (m), optionally the motor position; UTF-8, at most 16 MB.
+    columns : Columns
+        The names of the columns to read (default ``time``, ``u``, ``x``).
+
+    Returns
+    -------
+    Log
+        The checked samples.
+
     Raises
     ------
     LogError
@@ -131,7 +144,38 @@ def _number(text: str, where: str) -> float:
 
 
 def parse_log(text: str, source: str, columns: Columns = Columns()) -> Log:
-    """Check the CSV ``text`` of a log (``source`` names it in messages); see :func:`read_log`."""
+    """Check the CSV text of a log; see :func:`read_log`.
+
+    Parameters
+    ----------
+    text : str
+        The CSV text.
+    source : str
+        What names the log in messages (its file).
+    columns : Columns
+        The names of the columns to read.
+
+    Returns
+    -------
+    Log
+        The checked samples.
+
+    Raises
+    ------
+    LogError
+        Naming ``source``, the row (line = row + 1) and the column of what is wrong.
+
+    Examples
+    --------
+    >>> rows = [f"{0.01 * k:.2f},{100.0 if k % 4 == 1 else 0.0},{1e-6 * k}" for k in range(12)]
+    >>> log = parse_log("time,u,x\\n" + "\\n".join(rows), "log.csv")
+    >>> len(log.t), log.h
+    (12, 0.01)
+    >>> parse_log("time,u,x\\n0,1,0\\n0.01,oops,0", "bad.csv")
+    Traceback (most recent call last):
+    ...
+    papwc.identify.log_file.LogError: bad.csv, row 2 (line 3), column 'u': 'oops' is not a number
+    """
     reader = csv.reader(io.StringIO(text))
     try:
         header = next(reader)

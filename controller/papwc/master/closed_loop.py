@@ -44,7 +44,32 @@ __all__ = [
 class Maneuver:
     """A rest-to-rest maneuver: from rest at x0 = 0 to ``x_ref`` (m) at period ``T`` (s).
 
-    The fields and their defaults are those of :data:`papwc.model.maneuver.MANEUVER_VARIABLES`.
+    The fields and their defaults are those of :data:`papwc.model.maneuver.MANEUVER_VARIABLES`
+    (a scenario's ``[maneuver]`` table).
+
+    Parameters
+    ----------
+    x_ref : float
+        Reference (target) position, m; the mass starts at rest at 0.
+    T : float
+        Sample period, s.
+    duration : float
+        Duration of one iteration, s, a whole number of samples.
+    iterations : int
+        Repetitions of the maneuver; what the controller learned carries over.
+    timing : {"immediate", "delayed"}
+        When the force computed at t_k acts: over [t_k, t_k+1], or one sample later (as a
+        master stepping plant and controller side by side).
+    noise_std : float
+        Standard deviation of measurement noise added to ``x_meas``, m.
+    noise_seed : int
+        Seed of the measurement noise.
+
+    Examples
+    --------
+    >>> maneuver = Maneuver(x_ref=1e-3, duration=0.5)
+    >>> maneuver.T, maneuver.n_steps, maneuver.iterations
+    (0.01, 50, 10)
     """
 
     x_ref: float = MANEUVER_DEFAULTS["x_ref"]
@@ -63,7 +88,19 @@ class Maneuver:
 
 @dataclass
 class RunResult:
-    """Traces of all iterations of one controller; ``error`` is set if the run stopped."""
+    """What :func:`run_closed_loop` returns: the traces of all iterations of one controller.
+
+    Parameters
+    ----------
+    label : str
+        The controller's name in results.
+    settings : ControllerSettings
+        Its settings.
+    traces : list of Trace
+        One per iteration run, in order.
+    error : str
+        Why the run stopped early (``"iteration N: ..."``), or empty.
+    """
 
     label: str
     settings: ControllerSettings
@@ -162,11 +199,47 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
                     observers: Sequence[Observer] = ()) -> RunResult:
     """Run all iterations of the maneuver; what the controller learns carries over.
 
-    ``plant`` must already have its parameters as start values. The first
-    iteration initializes both slaves, later ones restart them. A failure
-    stops the run and is kept in ``result.error`` (``"iteration N: ..."``); the
-    traces recorded until then are kept. ``observers`` are added to the
-    execution (see :class:`ClosedLoop`); what they raise ends the run.
+    The first iteration initializes both slaves, later ones restart them (the plant from
+    its initial state, the controller keeping its estimates).
+
+    Parameters
+    ----------
+    plant : Slave
+        The plant (FrictionPlant.fmu as an :class:`~papwc.master.fmu.FmuSlave`, or the
+        in-process :class:`~papwc.master.slave.PhysicsSlave`), its parameters already given
+        as start values.
+    controller : Slave
+        The controller: a :class:`~papwc.master.slave.ControllerSlave` of a Python
+        controller, or PulseController.fmu as an ``FmuSlave``.
+    maneuver : Maneuver
+        Reference, period, duration, iterations, timing and measurement noise.
+    settings : ControllerSettings, optional
+        The controller's settings, kept in the result (default: the default settings).
+    label : str
+        The controller's name in the traces (default: its kind).
+    observers : sequence of Observer
+        Further observers of the execution (see :class:`ClosedLoop`); what they raise ends
+        the run.
+
+    Returns
+    -------
+    RunResult
+        A trace per iteration. A failure stops the run and is kept in ``result.error``
+        (``"iteration N: ..."``); the traces recorded until then are kept.
+
+    Examples
+    --------
+    >>> from papwc.controllers import make_controller
+    >>> from papwc.controllers.settings import ControllerSettings
+    >>> from papwc.master.slave import ControllerSlave, PhysicsSlave
+    >>> settings = ControllerSettings(kind="papwc", t_p_max=0.03, K_c=0.8, tolerance=2e-5)
+    >>> maneuver = Maneuver(x_ref=0.01, iterations=2)
+    >>> controller = ControllerSlave(make_controller(settings, maneuver.T))
+    >>> result = run_closed_loop(PhysicsSlave(), controller, maneuver, settings)
+    >>> len(result.traces), result.error
+    (2, '')
+    >>> abs(0.01 - result.traces[-1].column("x")[-1]) <= 2e-5
+    True
     """
     settings = settings if settings is not None else ControllerSettings()
     result = RunResult(label or settings.kind, settings)
@@ -188,7 +261,41 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
 
 def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuver,
                    label: str = "", observers: Sequence[Observer] = ()) -> RunResult:
-    """Run a Python controller of ``settings`` against ``plant`` (see :func:`run_closed_loop`)."""
+    """Run a Python controller of ``settings`` against ``plant``, over every iteration.
+
+    Parameters
+    ----------
+    plant : Slave
+        The plant, its parameters already given as start values.
+    settings : ControllerSettings
+        The controller's settings (one ``[[controller]]`` table); the controller is made
+        from them by the registry.
+    maneuver : Maneuver
+        The maneuver.
+    label : str
+        The controller's name in the traces (default: its kind).
+    observers : sequence of Observer
+        Further observers (see :func:`run_closed_loop`).
+
+    Returns
+    -------
+    RunResult
+        As :func:`run_closed_loop`.
+
+    Examples
+    --------
+    The exact-model controller on Table 1's plant with a 1 µm encoder:
+
+    >>> from papwc.controllers.settings import ControllerSettings
+    >>> from papwc.master.slave import PhysicsSlave
+    >>> plant = PhysicsSlave()
+    >>> plant.set_start_values({"x_resolution": 1e-6})
+    >>> settings = ControllerSettings(kind="exact", tolerance=5e-7, x_resolution=1e-6)
+    >>> result = run_controller(plant, settings, Maneuver(x_ref=0.01, iterations=2))
+    >>> trace = result.traces[-1]
+    >>> int(trace.column("pulses")[-1]), abs(0.01 - trace.column("x_meas")[-1]) <= 5e-7
+    (5, True)
+    """
     controller = ControllerSlave(make_controller(settings, maneuver.T))
     return run_closed_loop(plant, controller, maneuver, settings, label, observers)
 
@@ -197,9 +304,23 @@ def run_iteration(plant: Slave, controller: Controller | Slave, maneuver: Maneuv
                   label: str = "", iteration: int = 0) -> Trace:
     """One iteration from the plant's initial state (both slaves are initialized here).
 
-    ``controller`` is a Python controller or a controller slave. ``iteration``
-    names the trace and seeds the noise. Returns the trace (``trace.error`` set
-    if a step failed).
+    Parameters
+    ----------
+    plant : Slave
+        The plant, its parameters already given as start values.
+    controller : Controller or Slave
+        A Python controller, or a controller slave.
+    maneuver : Maneuver
+        The maneuver (its ``iterations`` is not read).
+    label : str
+        The controller's name in the trace.
+    iteration : int
+        Names the trace and seeds the noise.
+
+    Returns
+    -------
+    Trace
+        Every sample; ``trace.error`` is set if a step failed.
     """
     slave = controller if hasattr(controller, "watch") else ControllerSlave(controller)
     motor = getattr(getattr(slave, "controller", None), "reads_x_d_meas", False)

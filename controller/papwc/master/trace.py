@@ -4,22 +4,23 @@ A trace holds named columns, one value per sample t_k = k*T (SI units); the
 plant's are its Real outputs (:data:`PLANT_COLUMNS`, from the model layer's
 ``PLANT_OUTPUTS``: a new Real output of the plant is a new column):
 
-======== ======================================================================
-``k``    sample number
-``t``    time t_k, s
-``x``    position at t_k, m
-``v``    velocity at t_k, m/s
-``x_meas`` position the controller saw at t_k (encoder, noise), m
-``x_d``  motor (drive) position at t_k, m (``x`` on a rigid drive; NaN: the plant has none)
+============ ============================================================================
+``k``        sample number
+``t``        time t_k, s
+``x``        position at t_k, m
+``v``        velocity at t_k, m/s
+``x_meas``   position the controller saw at t_k (encoder, noise), m
+``x_d``      motor (drive) position at t_k, m (``x`` on a rigid drive; NaN: the plant has
+             none)
 ``x_d_meas`` the motor encoder's reading at t_k, m (NaN: the plant has none)
-``u``    force applied over [t_k, t_k+1], N (NaN in the last row)
-``e``    error x_ref - x, m
-(then)   the controller's outputs after its sample at t_k, the model layer's
-         ``CONTROLLER_OUTPUTS`` but ``u`` (:data:`papwc.controllers.OUTPUT_NAMES`):
-         ``b_hat``, ``f_c_hat`` (m/s**2, N), ``pulses`` started so far, ``mode``
-         (papwc.controllers.Mode), ``f_low`` (N), ``outcome``, ``outcome_reason``
-         (:data:`papwc.model.controller_settings.OUTCOMES`, ``OUTCOME_REASONS``)
-======== ======================================================================
+``u``        force applied over [t_k, t_k+1], N (NaN in the last row)
+``e``        error x_ref - x, m
+(then)       the controller's outputs after its sample at t_k, the model layer's
+             ``CONTROLLER_OUTPUTS`` but ``u`` (:data:`papwc.controllers.OUTPUT_NAMES`):
+             ``b_hat``, ``f_c_hat`` (m/s**2, N), ``pulses`` started so far, ``mode``
+             (papwc.controllers.Mode), ``f_low`` (N), ``outcome``, ``outcome_reason``
+             (:data:`papwc.model.controller_settings.OUTCOMES`, ``OUTCOME_REASONS``)
+============ ============================================================================
 
 The last row is the state at the end of the iteration.
 """

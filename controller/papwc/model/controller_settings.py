@@ -234,7 +234,7 @@ def kind_from_code(kind: str, kind_code: int, kind_set: bool) -> tuple[str, str 
 
 
 #: Outcome of a maneuver by code (the controller FMU's ``outcome`` output): ``active`` while
-#: the controller still works (coarse, pulse, wait), ``settled`` once |e| is within the
+#: the controller still works (coarse, pulse, wait), ``settled`` once abs(e) is within the
 #: tolerance at rest, ``stopped`` when it gave up (``outcome_reason`` says why).
 OUTCOMES: tuple[str, ...] = ("active", "settled", "stopped")
 

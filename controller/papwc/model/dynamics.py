@@ -126,6 +126,19 @@ class Plant:
         No deviation needs integration: each step is the closed form.
     is_eq1 : bool
         No deviation at all: :meth:`step` is :func:`papwc.model.stickslip.step`.
+
+    Examples
+    --------
+    Table 1's plant (m = 150 kg, f_c = 100 N, f_s = 130 N, c = 700 N.s/m) pushed with 300 N
+    for 0.05 s from rest, then left to friction; it sticks again at 3.63 mm:
+
+    >>> plant = Plant({"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0})
+    >>> for k in range(20):
+    ...     refused = plant.step(300.0 if k < 5 else 0.0, 0.01)
+    >>> refused is None, plant.is_stuck(), round(plant.x, 7)
+    (True, True, 0.0036329)
+    >>> plant.outputs()["x_meas"] == plant.x  # an ideal encoder
+    True
     """
 
     def __init__(self, params: Mapping[str, Any]) -> None:
@@ -179,11 +192,22 @@ class Plant:
             self.noise_draws = 1
 
     def state(self) -> dict[str, float | int]:
-        """The full state: JSON-able, restored exactly by :meth:`set_state`."""
+        """The full state, restored exactly by :meth:`set_state`.
+
+        Returns
+        -------
+        dict of str to float or int
+            By :data:`STATE_FIELDS`; JSON-able.
+        """
         return {name: getattr(self, name) for name in STATE_FIELDS}
 
     def set_state(self, values: Mapping[str, Any]) -> None:
         """Restore a state of :meth:`state`.
+
+        Parameters
+        ----------
+        values : mapping of str to float or int
+            A state as :meth:`state` returned it.
 
         Raises
         ------
@@ -205,17 +229,35 @@ class Plant:
             setattr(self, name, values[name] if name in _INT_FIELDS else float(values[name]))
 
     def x_meas(self) -> float:
-        """Position read by the encoder: ``x`` plus the noise, quantized, m."""
+        """Position read by the encoder (the output ``x_meas``).
+
+        Returns
+        -------
+        float
+            ``x`` plus the encoder noise, rounded to ``x_resolution``, m.
+        """
         if self.encoder is None:
             return quantize(self.x, self.x_resolution)
         return quantize(self.x + self.noise, self.x_resolution)
 
     def is_stuck(self) -> bool:
-        """Whether the table is at rest: ``v`` exactly 0 (the output ``stuck``)."""
+        """Whether the table is at rest (the output ``stuck``).
+
+        Returns
+        -------
+        bool
+            ``v`` is exactly 0.
+        """
         return self.v == 0.0
 
     def x_d_now(self) -> float:
-        """Motor (drive) position, m: ``x_d`` of the flexible drive, ``x`` on a rigid one."""
+        """Motor (drive) position (the output ``x_d``).
+
+        Returns
+        -------
+        float
+            ``x_d`` of the flexible drive, ``x`` on a rigid one, m.
+        """
         return self.x if self.flexible is None else self.x_d
 
     def x_d_meas(self) -> float:
@@ -224,6 +266,11 @@ class Plant:
         ``quantize(x_d + x_d_noise_std*N_k, x_d_resolution)``: the law of :meth:`x_meas`
         with the motor encoder's parameters and its own stream of draws, at the same
         communication point ``k = noise_draws - 1``.
+
+        Returns
+        -------
+        float
+            The reading, m (the output ``x_d_meas``).
         """
         x_d = self.x_d_now()
         if self.encoder_d is None:
@@ -231,20 +278,41 @@ class Plant:
         return quantize(x_d + self.encoder_d.draw(self.noise_draws - 1), self.x_d_resolution)
 
     def outputs(self) -> dict[str, Any]:
-        """Every output now, by the model layer's names (:data:`OUTPUTS`, in that order)."""
+        """Every output now.
+
+        Returns
+        -------
+        dict of str to float or bool
+            By the model layer's names (:data:`OUTPUTS`, in that order).
+        """
         return {name: value(self) for name, value in OUTPUTS.items()}
 
     # -- stepping ------------------------------------------------------------------------------
     def step(self, u: float, h: float) -> str | None:
-        """Advance over ``h`` (s, > 0) with the force ``u`` (N, finite) held.
+        """Advance over one communication step with the force held (zero-order hold).
 
         Without deviations (:attr:`is_eq1`) this is :func:`papwc.model.stickslip.step`,
-        called exactly as before the deviations existed.
+        Eq. (1) in closed form, called exactly as before the deviations existed.
+
+        Parameters
+        ----------
+        u : float
+            Force held over the step, N (finite).
+        h : float
+            Step size, s (> 0).
 
         Returns
         -------
         str or None
             None, or why the step is refused (the state is then left as it was).
+
+        Examples
+        --------
+        >>> plant = Plant({})  # Table 1's plant, at rest at x0 = 0
+        >>> plant.step(120.0, 0.01), plant.x  # below f_s = 130 N: it stays stuck
+        (None, 0.0)
+        >>> plant.step(300.0, 0.01), f"{plant.x:.6e}"  # above: it breaks away
+        (None, '6.564162e-05')
         """
         if not self.is_eq1:
             return self._step_checked(u, h)
@@ -670,7 +738,17 @@ if tuple(OUTPUTS) != tuple(var.name for var in PLANT_OUTPUTS):
 
 
 def output_reader(names: Sequence[str]) -> Callable[[Plant], list[Any]]:
-    """``read(plant)``: the outputs ``names`` of a :class:`Plant` now, as a new list.
+    """A reader of some outputs of a :class:`Plant`.
+
+    Parameters
+    ----------
+    names : sequence of str
+        Output names (:data:`OUTPUTS`), in the order they are read.
+
+    Returns
+    -------
+    callable
+        ``read(plant)``: the outputs ``names`` of ``plant`` now, as a new list.
 
     Raises
     ------

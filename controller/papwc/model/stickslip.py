@@ -3,8 +3,8 @@
 The plant of the paper, Eq. (1) as corrected in the reading notes::
 
     m * dv/dt = u - f_c * sgn(v) - c * v      while v != 0
-    v stays 0                                 while v == 0 and |u| <= f_s
-    breakaway in the direction of u           when  v == 0 and |u| >  f_s
+    v stays 0                                 while v == 0 and abs(u) <= f_s
+    breakaway in the direction of u           when  v == 0 and abs(u) >  f_s
 
 With the force ``u`` held constant over a step (zero-order hold), the motion
 between velocity zero crossings has a closed form, so :func:`step` advances the

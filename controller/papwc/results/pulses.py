@@ -41,7 +41,7 @@ if TYPE_CHECKING:
 
 __all__ = ["ROW_COLUMNS", "Pulse", "PulseBound", "pulse_ratio", "pulses_of"]
 
-#: Factor on |e| of the bound.
+#: Factor on abs(e) of the bound.
 RUNAWAY_FACTOR = 1.5
 #: Keys of :meth:`PulseBound.rows`, in order (SI units; see there).
 ROW_COLUMNS = ("pulse", "t_s", "samples", "amplitude_N", "e_m", "d_m", "smallest_m", "bound_m",
@@ -187,15 +187,15 @@ class _Check:
         self.replay: _Replay | None = None
 
     def cheap_bound(self, p: Pulse) -> float:
-        """1.5*|e| + q, m."""
+        """1.5*abs(e) + q, m."""
         return RUNAWAY_FACTOR * abs(p.e) + self.bound.q
 
     def cheap_ratio(self, p: Pulse) -> float:
-        """|d| / (1.5*|e| + q)."""
+        """abs(d) / (1.5*abs(e) + q)."""
         return _divide(abs(p.d), self.cheap_bound(p))
 
     def smallest(self, p: Pulse) -> float:
-        """|Displacement| of the smallest pulse from the state at p's start (0: no height)."""
+        """Absolute displacement of the smallest pulse from the state at p's start (0: none)."""
         height = abs(p.amplitude)
         f_low = height if self.lows is None else min(abs(self.lows[p.k]), height)
         if not f_low > 0.0:
@@ -205,7 +205,7 @@ class _Check:
         return self.replay.smallest(p.k, p.end, math.copysign(f_low, p.amplitude))
 
     def ratio(self, p: Pulse) -> float:
-        """|d| / max(1.5*|e| + q, the smallest pulse)."""
+        """abs(d) / max(1.5*abs(e) + q, the smallest pulse)."""
         return _divide(abs(p.d), max(self.cheap_bound(p), self.smallest(p)))
 
 
@@ -230,7 +230,7 @@ class _Replay:
         return plant.state()
 
     def smallest(self, k0: int, end: int, f: float) -> float:
-        """|Displacement| of one sample at f (N) from row k0's state, read at row ``end``.
+        """Absolute displacement of one sample at f (N) from row k0's state, read at row ``end``.
 
         The height is at least the breakaway force in effect there (random
         stiction draws it anew at every stop; ripple makes it depend on x).

@@ -4,7 +4,7 @@ Canudas de Wit, Olsson, Astrom and Lischinsky, "A new model for control of
 systems with friction", IEEE TAC 40(3), 1995. With the bristles' mean
 deflection ``z`` (m)::
 
-    dz/dt = v - sigma_0 * |v| * z / g(v)
+    dz/dt = v - sigma_0 * abs(v) * z / g(v)
     F     = sigma_0 * z + sigma_1 * dz/dt + c * v
 
 ``sigma_0`` (N/m) is the bristles' stiffness, ``sigma_1`` (N.s/m) their

@@ -2,7 +2,7 @@
 
 Steady sliding friction at speed ``|v|``::
 
-    g(v) = f_c + (f_s - f_c) * S(v),   S(v) = exp(-(|v| / v_s)**delta_s)
+    g(v) = f_c + (f_s - f_c) * S(v),   S(v) = exp(-(abs(v) / v_s)**delta_s)
 
 (``v_s`` the Stribeck velocity, m/s; ``delta_s`` >= 1 its shape exponent).
 With ``delta_s >= 1`` the slope of S is finite at v = 0, so the equations of
