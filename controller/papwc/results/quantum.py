@@ -60,7 +60,7 @@ if TYPE_CHECKING:
     from papwc.master.native_plant import NativePlantLibrary
 
 __all__ = ["COAST_MAX", "LUGRE_REST_M", "QUANTUM_PARAMETERS", "Quantum", "band_top",
-           "table_quantum"]
+           "move_from_rest", "table_quantum"]
 
 #: Longest time the move of the quantum's pulse is followed, s.
 COAST_MAX = 2.0
@@ -220,11 +220,23 @@ def _lowest_breaking(make: Callable, held: Mapping[str, Any], T: float, u: float
     raise ValueError(f"the quantum's table is not broken away at {u!r} N")
 
 
+def move_from_rest(table: Mapping[str, Any], T: float, u: float,
+                   library: NativePlantLibrary | None = None) -> float:
+    """abs(x) at rest after one sample at ``u`` (N), then zero force, from rest at its x0 on
+    the plant ``table`` as given (its breakaway force, ripple phase, lag, drive), m.
+
+    At rest as for the quantum (see the module), after at most :data:`COAST_MAX` s.
+    """
+    p = {**PLANT_DEFAULTS, **table}
+    return _move(_maker(library), p, float(T), float(u))
+
+
 def _move(make: Callable, table: Mapping[str, Any], T: float, u: float) -> float:
-    """|x| at rest after one sample at ``u`` (N) from rest at 0 (see the module), m."""
+    """|x - x0| at rest after one sample at ``u`` (N) from rest (see the module), m."""
     plant = make(table)
+    x0 = plant.x
     lugre = table["sigma_0"] > 0.0
-    x_before = 0.0
+    x_before = x0
     for k in range(max(1, round(COAST_MAX / T))):
         if plant.step(u if k == 0 else 0.0, T) is not None:
             raise ValueError(f"the quantum's table refused a step at u = {u!r} N")
@@ -232,7 +244,7 @@ def _move(make: Callable, table: Mapping[str, Any], T: float, u: float) -> float
         if k > 0 and (abs(x - x_before) <= LUGRE_REST_M if lugre else _held(plant, table)):
             break
         x_before = x
-    return abs(plant.x)
+    return abs(plant.x - x0)
 
 
 def _held(plant: Any, table: Mapping[str, Any]) -> bool:

@@ -10,5 +10,7 @@
 - :mod:`.one_pulse`: one sample on many candidate stick–slip tables at once, and the candidates
   the pulses leave;
 - :mod:`.sliding`: the sliding friction from the slides after wide pulses;
+- :mod:`.bound_physics`: why a hard per-pulse bound holds for one-sample pulses only from
+  about 50 um of error (the figures of the spec's bound);
 - :mod:`.counts`: the command line these share.
 """
