@@ -101,17 +101,19 @@ def test_the_tuned_and_the_out_of_sample_figures_side_by_side(tmp_path: Path) ->
                                              _spec_row("realism_mc_fresh", "pid", 0, 0)])
     rows = compare_rows(read_spec(tuned), read_spec(other))
     by = {(r["controller"], r["figure"]): (r["tuned"], r["other"]) for r in rows}
-    assert by[("exact", "within 1 um")] == ("27 of 30 (90.0%)", "18 of 30 (60.0%)")
+    assert by[("exact", "within 1 um")] == ("27/30 (90%)", "18/30 (60%)")
     assert by[("exact", "beyond at >= 50 um")] == ("0", "2")
     assert by[("exact", "settle p95 (s)")] == ("inf", "inf")
     assert by[("exact", "verdicts")] == ("R1 met, R4h met", "R1 MISSED, R4h MISSED")
-    assert by[("pid", "within 1 um")] == ("–", "0 of 30 (0.0%)")  # only out of sample
+    assert by[("pid", "within 1 um")] == ("–", "0/30 (0%)")  # only out of sample
     assert {r["battery"] for r in rows} == {"realism_mc"}  # the twin's suffix dropped
 
     out = tmp_path / "cmp"
     assert main(["spec", str(tuned), str(other / "spec.csv"), "--out", str(out)]) == 0
     text = (out / "spec_compare.md").read_text()
-    assert "| rigid | exact | within 1 um | 27 of 30 (90.0%) | 18 of 30 (60.0%) |" in text
+    assert ("| rigid | exact | 27/30 (90%) → 18/30 (60%) | 9/30 (30%) → 9/30 (30%) | – → – "
+            "|") in text
+    assert text.count("| rigid | exact |") == 1 and "| rigid | pid | – → 0/30 (0%) |" in text
     with open(out / "spec_compare.csv", newline="") as f:
         assert len(list(csv.DictReader(f))) == len(rows)
 

@@ -471,27 +471,33 @@ def _base_name(name: str) -> str:
 
 
 def _shown(row: dict | None, figure: str, of: str) -> str:
+    """A figure as :func:`compare_rows` shows it: ``n/N (p%)``, seconds, a count, or "–"."""
     if row is None or row.get(figure, "") in ("", None):
         return "–"
     if of:
-        return _share(row[figure], row[of])
+        n, total = int(row[figure]), int(row[of])
+        return f"{n}/{total} ({n / total:.0%})" if total else "–"
     value = float(row[figure])
     return _fmt(value, ".3f") if figure.endswith("_s") else f"{value:g}"
 
 
 def compare_markdown(rows: list[dict], tuned: str, other: str) -> str:
-    """The side-by-side table of :func:`compare_rows` as Markdown, one block per battery."""
+    """The side-by-side table of :func:`compare_rows` as Markdown: per battery one row per
+    case and controller, each figure ``tuned → out of sample``."""
+    labels = [label for label, _, _ in COMPARED] + ["verdicts"]
     lines = ["# Spec: tuned and out of sample", "",
-             f"Tuned: `{tuned}`. Out of sample: `{other}`. A figure that does not carry over "
-             "to the other seeds is not met.", ""]
-    batteries = list(dict.fromkeys(r["battery"] for r in rows))
-    for battery in batteries:
-        lines += [f"## {battery}", "",
-                  "| case | controller | figure | tuned | out of sample |",
-                  "|---|---|---|---:|---:|"]
-        for r in rows:
-            if r["battery"] == battery:
-                lines.append(f"| {r['case']} | {r['controller']} | {r['figure']} | "
-                             f"{r['tuned']} | {r['other']} |")
+             f"Tuned: `{tuned}`. Out of sample: `{other}`. Each cell: tuned → out of sample. "
+             "A figure that does not carry over to the other seeds is not met.", ""]
+    cells: dict[tuple[str, str, str], dict[str, str]] = {}
+    for r in rows:
+        cells.setdefault((r["battery"], r["case"], r["controller"]), {})[r["figure"]] = (
+            f"{r['tuned']} → {r['other']}")
+    for battery in dict.fromkeys(k[0] for k in cells):
+        lines += [f"## {battery}", "", "| case | controller | " + " | ".join(labels) + " |",
+                  "|---|---|" + "---:|" * (len(labels) - 1) + "---|"]
+        for (b, case, controller), figures in cells.items():
+            if b == battery:
+                lines.append(f"| {case} | {controller} | "
+                             + " | ".join(figures.get(label, "–") for label in labels) + " |")
         lines.append("")
     return "\n".join(lines)
