@@ -120,3 +120,20 @@ def test_the_quantum_is_computed_once_per_table(monkeypatch):
     table_quantum(params, 2 * T)
     table_quantum({**params, "tau_u": 4e-3}, T)
     assert len(calls) == 3
+
+
+def test_a_height_that_leaves_the_table_chattering_is_passed_over():
+    """A lag longer than T and a Stribeck velocity of 2.7 um/s: one ulp above the closed
+    form's threshold the table breaks away at the very end of the sample and chatters
+    between stick and slip in the next (the plant refuses that step: more than 10000
+    events). Such a height does not count as breaking the table away; the next that does
+    cleanly is u_break (found by a random draw over the plant's ranges)."""
+    params = {"m": 34.049302323820406, "f_c": 58.07252129518841, "c": 1487.229004830658,
+              "f_s": 88.59222150461473, "v_s": 2.7438554939469336e-06,
+              "delta_s": 1.2886893750665105, "ripple": 0.35993203859033995,
+              "ripple_period": 0.0076533883644812045, "tau_u": 0.023564546769457666}
+    q = table_quantum(params, T)
+    closed = q.band_top / -math.expm1(-T / params["tau_u"])
+    assert q.u_break == pytest.approx(closed, rel=1e-14) and q.u_break > closed
+    assert _moves({**params, "f_s": q.band_top / (1.0 + params["ripple"]),
+                   "ripple_phase": 0.5 * math.pi}, q.u_break)

@@ -69,6 +69,8 @@ LUGRE_REST_M = 1e-12
 #: The parameters the quantum depends on (the seeds, encoders and ripple phase do not enter).
 QUANTUM_PARAMETERS = ("m", "f_c", "f_s", "c", "v_s", "delta_s", "sigma_0", "sigma_1",
                       "ripple", "ripple_period", "f_s_spread", "tau_u", "m_d", "k_t", "c_t")
+#: Doublings of the band top tried for a flexible drive's breaking height.
+_DOUBLINGS = 40
 #: Results kept by :func:`table_quantum`, by parameters and period (oldest dropped first).
 _CACHE_SIZE = 4096
 _CACHE: dict[tuple, Quantum] = {}
@@ -166,11 +168,16 @@ def _compute(p: Mapping[str, Any], T: float, library: NativePlantLibrary | None)
 
 def _breaks(make: Callable, held: Mapping[str, Any], T: float, u: float, samples: int) -> bool:
     """Whether one sample at ``u`` (N), then zero force, moves the held table within
-    ``samples`` samples."""
+    ``samples`` samples.
+
+    A height whose step the plant refuses counts as not breaking it away: one an ulp above
+    the threshold can break the table away at the very end of the sample and leave it
+    chattering between stick and slip (more than the plant's events in the next step).
+    """
     plant = make(held)
     for k in range(samples):
         if plant.step(u if k == 0 else 0.0, T) is not None:
-            raise ValueError(f"the quantum's table refused a step at u = {u!r} N")
+            return False
         if plant.v != 0.0 or plant.x != 0.0:
             return True
     return False
@@ -178,11 +185,12 @@ def _breaks(make: Callable, held: Mapping[str, Any], T: float, u: float, samples
 
 def _samples_to_break(held: Mapping[str, Any], T: float) -> int:
     """Samples after which a one-sample pulse's force on the held table no longer grows:
-    two periods of the held drive's mode and five lag time constants, at least two samples."""
+    two periods of the held drive's mode and five lag time constants, at least two samples
+    and at most :data:`COAST_MAX`."""
     span = 5.0 * float(held["tau_u"])
     if held["m_d"] > 0.0:
         span += 2.0 * 2.0 * math.pi * math.sqrt(held["m_d"] / held["k_t"])
-    return max(2, math.ceil(span / T) + 2)
+    return max(2, min(math.ceil(span / T) + 2, round(COAST_MAX / T)))
 
 
 def _bisect_break(make: Callable, held: Mapping[str, Any], T: float, top: float) -> float:
@@ -190,13 +198,14 @@ def _bisect_break(make: Callable, held: Mapping[str, Any], T: float, top: float)
     relative 1e-12 (a flexible drive: its coupling keeps ringing after the sample)."""
     n = _samples_to_break(held, T)
     lo, hi = 0.0, top
-    for _ in range(200):
+    for _ in range(_DOUBLINGS):
         if _breaks(make, held, T, hi, n):
             break
         lo, hi = hi, 2.0 * hi
     else:
-        raise ValueError("no one-sample height up to 2**200 times the band top breaks the "
-                         "quantum's table away")
+        raise ValueError(f"no one-sample height up to 2**{_DOUBLINGS} times the band top "
+                         f"({top!r} N) breaks the quantum's table away within "
+                         f"{n * T:g} s")
     while hi - lo > 1e-12 * hi:
         mid = 0.5 * (lo + hi)
         if _breaks(make, held, T, mid, n):
@@ -238,8 +247,10 @@ def _move(make: Callable, table: Mapping[str, Any], T: float, u: float) -> float
     lugre = table["sigma_0"] > 0.0
     x_before = x0
     for k in range(max(1, round(COAST_MAX / T))):
-        if plant.step(u if k == 0 else 0.0, T) is not None:
-            raise ValueError(f"the quantum's table refused a step at u = {u!r} N")
+        why = plant.step(u if k == 0 else 0.0, T)
+        if why is not None:
+            raise ValueError(f"the quantum's table refused the step after {k * T:g} s of a "
+                             f"one-sample pulse of {u!r} N: {why}")
         x = plant.x
         if k > 0 and (abs(x - x_before) <= LUGRE_REST_M if lugre else _held(plant, table)):
             break
