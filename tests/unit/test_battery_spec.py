@@ -226,3 +226,16 @@ def test_a_record_with_malformed_pulses_is_not_used(crafted) -> None:
     assert record_problem(record) == "a controller's pulses are not a list of pulse rows"
     record["controllers"] = [{**record["controllers"][0], "pulses": {}}]
     assert record_problem(record) == "a controller's pulses are not a list of pulse rows"
+
+
+@pytest.mark.slow
+def test_a_seed_offset_is_written_beside_the_figures(crafted, tmp_path) -> None:
+    battery, runs, records = crafted
+    battery.seed_offset = 7
+    write_outputs(tmp_path, [battery], runs, records, "0" * 64)
+    for name in ("runs.csv", "spec.csv"):
+        with open(tmp_path / name, newline="") as f:
+            assert {r["seed_offset"] for r in csv.DictReader(f)} == {"7"}, name
+    text = (tmp_path / "summary.md").read_text()
+    assert "every seed offset by 7 (--seed-offset)" in text
+    assert "### Spec (seed offset 7)" in text

@@ -166,6 +166,8 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
                   f"File `{battery.source}`: {len(b_runs)} runs ({cases}{grid} grid point(s) × "
                   f"{battery.n} draw(s)"
                   + (f", seed {battery.seed}" if battery.monte_carlo else "")
+                  + (f"; every seed offset by {battery.seed_offset} (--seed-offset)"
+                     if battery.seed_offset else "")
                   + f"); success tolerance: {tol}.", ""]
         if battery.varied:
             lines += ["Varied: " + ", ".join(f"`{p}`" for p in battery.varied) + ".", ""]
@@ -297,16 +299,18 @@ def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], reco
                + ["controller", "kind", "iteration", *ROW_COLUMNS])
     spec_table = spec_rows(batteries, runs, records, rows)
     write_rows(paths[4], spec_table, SPEC_COLUMNS)
+    by_name = {b.name: b for b in batteries}
     run_rows = []
     for spec in runs:
         rec = records[(spec.battery, spec.run_id)]
         row = {"battery": spec.battery, "run_id": spec.run_id, "run_hash": spec.run_hash}
         if has_cases:
             row["case"] = spec.case
-        row.update({"status": rec["status"], "message": rec["message"], **_flatten(spec.data)})
+        row.update({"status": rec["status"], "message": rec["message"],
+                    "seed_offset": by_name[spec.battery].seed_offset, **_flatten(spec.data)})
         run_rows.append(row)
     run_columns = ["battery", "run_id", "run_hash"] + (["case"] if has_cases else []) + [
-        "status", "message"]
+        "status", "message", "seed_offset"]
     run_columns += list(dict.fromkeys(k for r in run_rows for k in r if k not in run_columns))
     write_rows(paths[1], run_rows, run_columns)
     write_text(paths[2], summary_markdown(batteries, runs, rows, fmu_sha256, spec_table))
