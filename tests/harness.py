@@ -539,3 +539,17 @@ def stop_time(v0, force, m, c):
         if c == 0:
             return float(-m * v0 / force)
         return float((m / c) * (1 - c * v0 / force).ln())
+
+
+def hard_runaways(traces: Sequence[Any], plant: Mapping[str, Any], T: float) -> list[dict]:
+    """The pulses of ``traces`` on ``plant`` that a hard requirement of the spec forbids
+    (:func:`papwc.battery.spec.hard_pulses`: beyond their bound at abs(e) >= 50 um, planned
+    and beyond it at abs(e) >= 1 um, or moving more than 20 um below 1 um), each with its
+    iteration."""
+    from papwc.battery.spec import hard_pulses
+    from papwc.results.pulses import PulseBound
+
+    bound = PulseBound(plant, T)
+    return hard_pulses([{"iteration": trace.iteration, **row} for trace in traces
+                        for row in bound.rows(trace)])
+

@@ -10,8 +10,8 @@ from papwc import __version__
 from papwc.exit_status import run_command
 
 #: Subcommand modules under papwc.commands, in the order ``papwc --help`` lists them.
-COMMANDS: tuple[str, ...] = ("build", "run", "reproduce", "bench", "battery", "cosim", "hostenv",
-                             "identify")
+COMMANDS: tuple[str, ...] = ("build", "run", "reproduce", "bench", "battery", "spec", "cosim",
+                             "hostenv", "identify")
 
 
 def make_parser() -> argparse.ArgumentParser:

@@ -162,8 +162,8 @@ def test_help_lists_every_command(capsys):
     out = capsys.readouterr().out
     for name in COMMANDS:
         assert name in out
-    assert COMMANDS == ("build", "run", "reproduce", "bench", "battery", "cosim", "hostenv",
-                        "identify")
+    assert COMMANDS == ("build", "run", "reproduce", "bench", "battery", "spec", "cosim",
+                        "hostenv", "identify")
 
 
 def test_build_command_writes_the_fmus_and_the_ssp(tmp_path, capsys):

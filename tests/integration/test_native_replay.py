@@ -1,14 +1,15 @@
-"""The runaway bound replayed on the native FMU's own C plant (papwc.master.native_plant).
+"""The table's quantum computed on the native FMU's own C plant (papwc.master.native_plant).
 
 - the binary of the native FrictionPlant.fmu gives its plant (``papwc_plant_api``, checked
   against the model layer's structs); a pythonfmu FMU, no folder or a binary of another
-  layout give none, and the bound replays the model layer's Plant;
+  layout give none, and the quantum is computed on the model layer's Plant;
 - :class:`NativePlant` steps, reads and restores states as Plant does, bit for bit, with
   each deviation of scenarios/realism.toml and all of them at once;
-- the bound of every pulse (``PulseBound.rows``: the smallest pulse from the replayed state
-  at each pulse) and the largest ratio per iteration are the same numbers, bit for bit,
-  replayed on the C plant and on Plant, on closed-loop traces with those deviations;
-- a battery worker's record is the same with the native replay and with Plant's.
+- the table's quantum (:func:`papwc.results.quantum.table_quantum`) and so the bound of
+  every pulse (``PulseBound.rows``) and the largest ratio per iteration are the same
+  numbers, bit for bit, on the C plant and on Plant, on closed-loop traces with those
+  deviations;
+- a battery worker's record is the same with the native plant and with Plant's.
 """
 
 from __future__ import annotations
@@ -21,6 +22,7 @@ from pathlib import Path
 import pytest
 from harness import DEVIATIONS, table_1
 
+import papwc.results.quantum as quantum_module
 from papwc.master.native_plant import (
     FpParams,
     NativePlant,
@@ -31,6 +33,7 @@ from papwc.master.native_plant import (
 )
 from papwc.model.dynamics import Plant
 from papwc.results.pulses import PulseBound
+from papwc.results.quantum import table_quantum
 from papwc.scenario import parse_scenario
 from papwc.scenario_run import run_scenario
 
@@ -132,26 +135,38 @@ def _traces(case: str, fmu: Path, unzipped: Path, x_ref: float) -> tuple[dict, l
     return scenario.plant, [tr for r in results for tr in r.traces]
 
 
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_the_quantum_on_the_native_plant_is_plants(library: NativePlantLibrary,
+                                                  case: str) -> None:
+    params = {**PLANT, **CASES[case]}
+    quantum_module._CACHE.clear()
+    native = table_quantum(params, T, library)
+    quantum_module._CACHE.clear()
+    python = table_quantum(params, T)
+    assert _same(native, python)
+    assert python.move > 0.0
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("case", sorted(CASES))
-def test_replay_on_the_native_plant_is_plants(
+def test_the_bound_on_the_native_plant_is_plants(
         library: NativePlantLibrary, friction_plant_fmu: Path, friction_plant_unzipped: Path,
         case: str) -> None:
     plant, traces = _traces(case, friction_plant_fmu, friction_plant_unzipped, 1e-3)
-    python, native = PulseBound(plant, T), PulseBound(plant, T, library)
-    assert native.library is library and python.library is None
-    pulses = 0
-    for trace in traces:
-        rows, native_rows = python.rows(trace), native.rows(trace)
-        assert _same(native_rows, rows), (case, trace.iteration)
-        pulses += len(rows)
-    assert pulses >= 4  # the closed loops made pulses to bound
-    assert any(row["smallest_m"] > 0.0 for row in rows)
-    assert _same(native.ratios(traces), python.ratios(traces))
+    quantum_module._CACHE.clear()
+    native = PulseBound(plant, T, library)
+    native_rows = [native.rows(trace) for trace in traces]
+    native_ratios = native.ratios(traces)
+    quantum_module._CACHE.clear()
+    python = PulseBound(plant, T)
+    rows = [python.rows(trace) for trace in traces]
+    assert _same(native_rows, rows), case
+    assert sum(len(r) for r in rows) >= 4  # the closed loops made pulses to bound
+    assert _same(native_ratios, python.ratios(traces))
 
 
 @pytest.mark.slow
-def test_battery_record_is_the_same_with_the_native_replay(
+def test_battery_record_is_the_same_with_the_native_plant(
         friction_plant_fmu: Path, friction_plant_unzipped: Path,
         monkeypatch: pytest.MonkeyPatch) -> None:
     import papwc.master.native_plant as native_plant
@@ -173,9 +188,11 @@ def test_battery_record_is_the_same_with_the_native_replay(
         return found
 
     monkeypatch.setattr(native_plant, "plant_library", spy)
+    quantum_module._CACHE.clear()
     with_native = execute_run(task, str(friction_plant_fmu), str(friction_plant_unzipped))
     assert calls and calls[-1] is not None
     monkeypatch.setattr(native_plant, "plant_library", lambda unzip_dir: None)
+    quantum_module._CACHE.clear()
     with_plant = execute_run(task, str(friction_plant_fmu), str(friction_plant_unzipped))
     assert with_native["status"] == "ok", with_native["message"]
     assert _same(with_native["controllers"], with_plant["controllers"])

@@ -10,7 +10,6 @@ from harness import TABLE_1_TOML
 from papwc.battery import get_field, load_battery, parse_battery, plan_runs
 from papwc.errors import ScenarioError
 from papwc.resources import scenario_file
-from papwc_studies import scenario_path
 
 BASE = 'name = "cases"\n' + TABLE_1_TOML + """\
 [maneuver]
@@ -123,7 +122,7 @@ def test_the_realism_battery_is_valid() -> None:
 @pytest.mark.parametrize("name", ["realism", "realism_mc", "realism_mc_lugre"])
 def test_the_1_khz_twin_of_a_realism_battery_runs_its_pid_on_the_same_plants(name) -> None:
     at_100hz = plan_runs([load_battery(scenario_file(f"{name}.toml"))])
-    at_1khz = plan_runs([load_battery(scenario_path(f"{name}_1khz.toml"))])  # a study variant
+    at_1khz = plan_runs([load_battery(scenario_file(f"{name}_1khz.toml"))])
     assert [r.run_id for r in at_1khz] == [r.run_id for r in at_100hz]
     assert all(a.data["plant"] == b.data["plant"] for a, b in zip(at_100hz, at_1khz,
                                                                   strict=True))

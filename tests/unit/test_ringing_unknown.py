@@ -8,15 +8,16 @@ that moved 1031 um (2.2 times the runaway bound) and PAPWC one that moved 1.5 ti
 
 from __future__ import annotations
 
+import functools
+
 import pytest
 from harness import REALISM_SETTINGS as SETTINGS
-from harness import run_on_physics, table_1
+from harness import hard_runaways, run_on_physics, table_1
 
 from papwc.controllers import make_controller
 from papwc.controllers.rest import RING_LEG
 from papwc.controllers.settings import ControllerSettings
 from papwc.master import PhysicsSlave
-from papwc.results.pulses import pulse_ratio
 
 T = 0.01
 RIGID = table_1()
@@ -40,19 +41,48 @@ def _run(plant: dict, kind: str, x_ref: float, **settings):
     return run_on_physics(plant, s, x_ref=x_ref, T=T, duration=2.0, iterations=3)
 
 
+#: The drives of the unknown-mode tests, by name.
+MODES = {"15hz": TABLE_15HZ, "20hz": TABLE_20HZ}
+
+
+@functools.cache
+def _unknown_runs(kind: str, mode: str) -> list:
+    """(x_ref, result) of 3 iterations of 1 mm and 0.4 mm on an untold drive."""
+    return [(x_ref, _run(MODES[mode], kind, x_ref)) for x_ref in (1e-3, 4e-4)]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", sorted(SETTINGS))
-@pytest.mark.parametrize("plant", [TABLE_15HZ, TABLE_20HZ], ids=["15hz", "20hz"])
-def test_a_table_only_controller_on_an_unknown_mode_does_not_run_away(kind, plant):
-    """No pulse beyond max(1.5*|e| + one count, the smallest pulse), no maneuver ends
-    farther than it started, over 3 iterations of 1 mm and 0.4 mm moves."""
-    for x_ref in (1e-3, 4e-4):
-        result = _run(plant, kind, x_ref)
-        ratios = pulse_ratio(result.traces, plant, T)
-        assert max(ratios) <= 1.0 + 1e-9, (x_ref, ratios)
+@pytest.mark.parametrize("mode", ["15hz", "20hz"])
+def test_a_table_only_controller_on_an_unknown_mode_never_ends_farther(kind, mode):
+    """No maneuver ends farther than it started, over 3 iterations of 1 mm and 0.4 mm
+    moves."""
+    for x_ref, result in _unknown_runs(kind, mode):
         for trace in result.traces:
             x = trace.column("x")
             assert abs(trace.x_ref - x[-1]) <= abs(trace.x_ref - x[0]), (x_ref, trace.iteration)
+
+
+_PAPWC_UNKNOWN = (
+    "R4h under the table's bound (issue 43): PAPWC's one-sample pulses above the height that "
+    "breaks this drive's table away at the band top overshoot: {}")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("kind", "mode"), [
+    (kind, mode) if kind != "papwc" else pytest.param(kind, mode, marks=pytest.mark.xfail(
+        strict=True, reason=_PAPWC_UNKNOWN.format(
+            "15 Hz (148 N), 0.4 mm target: 7 of 18 at 160.75 N, 53 to 142 um of error, 1.07 to "
+            "1.86 times their bound" if mode == "15hz" else
+            "20 Hz (114 N), 1 mm target: 2 of 24, 124 N at 29 um and -130 N at 43 um, 1.7 and "
+            "1.2 times their bound")))
+    for kind in sorted(SETTINGS) for mode in ("15hz", "20hz")])
+def test_a_table_only_controller_on_an_unknown_mode_fires_no_hard_runaway(kind, mode):
+    """The same runs: no pulse beyond its bound at abs(e) >= 50 um, or planned and beyond it
+    at abs(e) >= 1 um (R4h), none moving more than 20 um below 1 um (R5)."""
+    for x_ref, result in _unknown_runs(kind, mode):
+        hard = hard_runaways(result.traces, MODES[mode], T)
+        assert not hard, (x_ref, hard)
 
 
 @pytest.mark.parametrize("kind", sorted(SETTINGS))

@@ -7,13 +7,15 @@ measurements; honest outcomes; the pulse bound of :mod:`papwc.results.pulses`.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import math
 
 import pytest
-from harness import TABLE_1, run_on_physics, table_1
+from harness import TABLE_1, hard_runaways, run_on_physics, table_1
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from papwc.battery.spec import hard_pulses
 from papwc.controllers import (
     CONTROLLER_KINDS,
     Controller,
@@ -41,6 +43,7 @@ from papwc.model.controller_settings import (
     settings_problems,
 )
 from papwc.results.pulses import PulseBound, pulse_ratio, pulses_of
+from papwc.results.quantum import table_quantum
 from papwc.results.summary import summarize
 
 T = 0.01
@@ -283,21 +286,44 @@ def test_a_mode_too_slow_for_a_bounded_dwell_is_refused_naming_it(f_mode):
     assert settings_problems({"f_mode": 0.0, "T": 0.01}) == []
 
 
+@functools.cache
+def _ringing_runs(kind: str) -> list:
+    """(x_ref, result) of 3 iterations on realism.toml's 20 Hz drive, told the mode."""
+    return [(x_ref, _run(FLEXIBLE, _settings(kind, f_mode=20.0), x_ref=x_ref))
+            for x_ref in (1e-2, 1e-3, 5e-5)]
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS)
-def test_a_ringing_table_gets_no_runaway_pulse(kind):
-    """The 20 Hz mode of scenarios/realism.toml, told to the controllers: no pulse moves
-    more than its bound, no maneuver ends farther than it started, in any of 3 iterations
-    (the exact-model controller's third 10 mm move repeated a one-sample pulse of 251 N that
-    had moved 71 um and, with the drive ringing, moved 400 um, until a width it had not made
-    was planned for less)."""
-    for x_ref in (1e-2, 1e-3, 5e-5):
-        result = _run(FLEXIBLE, _settings(kind, f_mode=20.0), x_ref=x_ref)
-        ratios = pulse_ratio(result.traces, FLEXIBLE, T)
-        assert max(ratios) <= 1.0 + 1e-9, (x_ref, ratios)
+def test_a_ringing_table_never_ends_farther(kind):
+    """The 20 Hz mode of scenarios/realism.toml, told to the controllers: no maneuver ends
+    farther than it started, in any of 3 iterations (the exact-model controller's third
+    10 mm move repeated a one-sample pulse of 251 N that had moved 71 um and, with the drive
+    ringing, moved 400 um, until a width it had not made was planned for less)."""
+    for _, result in _ringing_runs(kind):
         for tr in result.traces:
             x = tr.column("x")
             assert abs(tr.x_ref - x[-1]) <= abs(tr.x_ref - x[0])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", [
+    "pwc",
+    pytest.param("papwc", marks=pytest.mark.xfail(strict=True, reason=(
+        "R4h under the table's bound (issue 43): on the 1 mm target 17 of 37 one-sample "
+        "pulses of 216 N (above the 114 N that breaks this drive's table away at the band "
+        "top) overshoot, 1.04 to 4.3 times their bound at 19 to 131 um of error"))),
+    pytest.param("exact", marks=pytest.mark.xfail(strict=True, reason=(
+        "R4h under the table's bound (issue 43): two one-sample pulses above the 114 N "
+        "that breaks this drive's table away: -120.6 N at 37 um (10 mm target, 1.2 times "
+        "its bound) and -197.9 N at 13 um (1 mm target, 5.9 times)"))),
+])
+def test_a_ringing_table_gets_no_pulse_a_hard_requirement_forbids(kind):
+    """The same runs: no pulse beyond its bound at abs(e) >= 50 um, or planned and beyond it
+    at abs(e) >= 1 um (R4h), none moving more than 20 um below 1 um (R5)."""
+    for x_ref, result in _ringing_runs(kind):
+        hard = hard_runaways(result.traces, FLEXIBLE, T)
+        assert not hard, (x_ref, hard)
 
 
 # -- PAPWC: a Stribeck crawl -----------------------------------------------------------------
@@ -463,20 +489,28 @@ def test_a_long_pulse_on_a_small_error_is_a_runaway():
     assert pulse_ratio([tr], TABLE_1, T)[0] == pytest.approx(p.d / 1.5e-4)
 
 
-def test_the_smallest_pulse_is_never_a_runaway():
-    """One sample at the controller's lowest height f_low is its smallest pulse, whatever
-    the error: on Eq. (1) at 300 N it is d_min of Eq. (19), 1.8567e-4 m."""
-    tr = _scripted_trace([300.0] + [0.0] * 40, x_ref=1e-6, f_low=300.0)
-    (p,) = pulses_of(tr)
-    assert p.d == pytest.approx(1.8567e-4, rel=1e-4)
-    assert pulse_ratio([tr], TABLE_1, T)[0] == pytest.approx(1.0, rel=1e-12)
-    # declared lower, the same pulse is one
-    tr = _scripted_trace([300.0] + [0.0] * 40, x_ref=1e-6, f_low=130.0)
-    assert pulse_ratio([tr], TABLE_1, T)[0] > 10.0
+def test_the_controllers_floor_f_low_changes_no_bound():
+    """One sample at 300 N from 1 um on Eq. (1) moves d_min of Eq. (19), 1.8567e-4 m: 14.6
+    times the table's quantum (Eq. (20) at f_s, 1.27e-5 m), whatever floor ``f_low`` the
+    controller declares. The bound was once one sample at min(f_low, height), so a
+    controller declaring 300 N as its floor made that pulse its own bound (ratio 1)."""
+    honest = _scripted_trace([300.0] + [0.0] * 40, x_ref=1e-6, f_low=130.0)
+    boastful = _scripted_trace([300.0] + [0.0] * 40, x_ref=1e-6, f_low=1e9)
+    assert boastful.column("f_low")[0] == 1e9 and honest.column("f_low")[0] == 130.0
+    bound = PulseBound(TABLE_1, T)
+    rows, boast_rows = bound.rows(honest), bound.rows(boastful)
+    assert rows == boast_rows
+    (row,) = rows
+    assert row["d_m"] == pytest.approx(1.8567e-4, rel=1e-4)
+    assert row["quantum_m"] == pytest.approx(1.2684e-5, rel=1e-4)
+    assert row["bound_m"] == row["quantum_m"]  # 1.5*1e-6 is below it
+    assert row["ratio"] == pytest.approx(14.64, rel=1e-3)
+    assert pulse_ratio([boastful], TABLE_1, T) == pulse_ratio([honest], TABLE_1, T)
+    assert hard_pulses(boast_rows) == boast_rows  # one sample above the band top: planned
 
 
 def test_each_pulse_is_listed_with_its_bound_and_the_runaway_one_stands_out():
-    """PulseBound.rows (``pulses.csv`` of ``papwc run``): a pulse of 1 sample at f_low, then
+    """PulseBound.rows (``pulses.csv`` of ``papwc run``): a pulse of 1 sample at 140 N, then
     one of 3 samples at 300 N on the error left; the second is the runaway, and the largest
     ratio listed is the one the battery reports."""
     forces = [140.0] + [0.0] * 20 + [300.0] * 3 + [0.0] * 20
@@ -488,18 +522,23 @@ def test_each_pulse_is_listed_with_its_bound_and_the_runaway_one_stands_out():
     first, second = rows
     assert first["t_s"] == 0.0 and second["t_s"] == pytest.approx(21 * T)
     assert first["e_m"] == 1e-4 and second["e_m"] == pytest.approx(1e-4 - first["d_m"])
+    quantum = table_quantum(TABLE_1, T)
     for r in rows:
-        assert r["bound_m"] == max(1.5 * abs(r["e_m"]) + bound.q, r["smallest_m"])
+        # the lowest float above f_s breaks the table away (it holds up to f_s itself)
+        assert (r["band_top_N"], r["u_break_N"], r["quantum_m"]) == (
+            130.0, math.nextafter(130.0, math.inf), quantum.move)
+        assert r["bound_m"] == max(1.5 * abs(r["e_m"]) + bound.q, quantum.move)
         assert r["ratio"] == abs(r["d_m"]) / r["bound_m"]
-    # the first is the smallest pulse itself: its own bound
-    assert first["smallest_m"] == pytest.approx(abs(first["d_m"]), rel=1e-12)
     assert first["ratio"] <= 1.0 < second["ratio"]
     assert second["ratio"] == pytest.approx(pulse_ratio([tr], TABLE_1, T)[0], rel=1e-12)
 
 
-def test_the_bound_replays_the_plant_state():
-    """On a flexible drive still ringing, the smallest pulse is computed from that state."""
+def test_the_bound_of_a_flexible_drive_is_its_quantum_from_rest():
+    """On a flexible drive the quantum starts from the drive at rest; a trace without pulses
+    has ratio 0."""
     bound = PulseBound(FLEXIBLE, T)
+    assert bound.quantum == table_quantum(FLEXIBLE, T)
+    assert 0.0 < bound.quantum.move < 1e-4 and bound.quantum.u_break != 130.0
     tr = _scripted_trace([], x_ref=0.0)
     assert bound.ratios([tr]) == [0.0]
 

@@ -88,6 +88,13 @@ validated by
 :func:`papwc.scenario.parse_scenario`; a run whose parameters are invalid (e.g. a
 sweep value ``f_s < f_c``) is recorded with status ``error`` and the message.
 
+Seed offset (``papwc battery --seed-offset N``, :attr:`Battery.seed_offset`): N is added to
+the draws' ``seed`` and to each run's ``plant.seed`` and ``maneuver.noise_seed``, so the same
+files are measured on tables and draws they were not tuned on; the offset is part of each
+run's hash and of the journal's header (a resume with another offset is refused), and
+spec.csv and summary.md show it. ``papwc spec TUNED OTHER`` sets the two batteries' spec.csv
+side by side.
+
 Outputs of :func:`run_battery` in the output folder:
 
 - ``journal.jsonl`` -- one JSON line per finished run, flushed and fsync'ed as it
@@ -109,11 +116,14 @@ Outputs of :func:`run_battery` in the output folder:
 - ``runs.csv`` -- one row per run with its status and every resolved parameter.
 - ``pulses.csv`` -- every pulse of every run, controller and iteration: the run's
   battery, id, hash (and case), then the columns of ``papwc run``'s pulses.csv (its
-  error, displacement, the runaway bound and the ratio to it).
-- ``spec.csv`` -- per battery, case and controller the figures of the spec
-  (:func:`papwc.battery.report.spec_rows`): within 1 um and within one count, settle
-  median and p95, runaway pulses at abs(e) >= 1 um and below, the largest runaway move,
-  maneuvers that ended farther, false ``settled``, ``time_ended``.
+  width, height, error, displacement, the table's band top, breakaway height and quantum,
+  the bound ``max(1.5*abs(e) + q, quantum_m)`` and the ratio to it;
+  :mod:`papwc.results.pulses`).
+- ``spec.csv`` -- per battery, case and controller the figures of the spec and each
+  requirement's verdict (:func:`papwc.battery.spec.spec_rows`; the targets are
+  :data:`papwc.battery.spec.REQUIREMENTS`): within 1 um, one count, 1e-7 m and 20 um,
+  settle median and p95, maneuvers that ended farther, false ``settled``, the pulses
+  beyond their bound by error band and kind, ``time_ended``.
 - ``summary.md`` -- per battery (and case) and controller: success rate, median,
   95th percentile and maximum of ``|final error|``, pulses and settle time, in the
   last iteration; then the spec table (``spec.csv``).

@@ -25,17 +25,18 @@ from pathlib import Path
 
 from papwc.errors import BatteryError, OutputError
 from papwc.output_files import create_new, lock_folder, os_error_text
+from papwc.results.pulses import ROW_COLUMNS
 
 # --- journal ---------------------------------------------------------------------------------
 
 
 #: File name of the journal in the output folder.
 JOURNAL_NAME = "journal.jsonl"
-#: Version of the journal's record layout.
-JOURNAL_FORMAT = 2
+#: Version of the journal's record layout (3: pulse rows with the table's quantum, no
+#: smallest_m; the header's seed_offset).
+JOURNAL_FORMAT = 3
 #: Numbers every row of a controller's ``pulses`` holds (papwc run's pulses.csv columns).
-_PULSE_KEYS = ("iteration", "pulse", "t_s", "samples", "amplitude_N", "e_m", "d_m",
-               "smallest_m", "bound_m", "ratio")
+_PULSE_KEYS = ("iteration", *ROW_COLUMNS)
 #: Warnings about skipped lines kept per journal (the rest are counted).
 _WARNINGS_KEPT = 20
 
@@ -252,6 +253,12 @@ class Journal:
                         f"{path}: cannot resume: the journal was written by another papwc "
                         f"(journal format {old.get('format')!r}, this one writes "
                         f"{JOURNAL_FORMAT}); use another --out, or --overwrite to start again")
+                if old.get("seed_offset", 0) != header.get("seed_offset", 0):
+                    raise BatteryError(
+                        f"{path}: cannot resume: the journal's runs were drawn with "
+                        f"--seed-offset {old.get('seed_offset', 0)}, these with "
+                        f"{header.get('seed_offset', 0)}; resume with the journal's offset, "
+                        "use another --out, or --overwrite to start again")
                 if old.get("fingerprint") != header["fingerprint"]:
                     why = ("the plant FMU's model (its GUID) or papwc's code differs"
                            if old.get("key") != header.get("key")

@@ -83,7 +83,8 @@ def _sha256(path: Path) -> str:
 
 #: Modules whose code computes a run in a worker (their digest keys the journal).
 _RESULT_CODE = ("model", "controllers", "master", "scenario_run.py", "scenario.py",
-                "results/summary.py", "results/pulses.py", "battery/worker.py", "battery/plan.py")
+                "results/summary.py", "results/pulses.py", "results/quantum.py",
+                "battery/worker.py", "battery/plan.py")
 
 
 def code_digest() -> str:
@@ -213,13 +214,15 @@ def run_battery(
     except FmuError as exc:
         raise BatteryError(str(exc)) from None
     runs = plan_runs(batteries, max_runs=max_runs, max_steps=max_steps)
+    offsets = {b.seed_offset for b in batteries}
     digest = _sha256(fmu)
     key = result_key(md.guid)
     fingerprint = hashlib.sha256(json.dumps(
         [key] + [[s.battery, s.run_id, s.run_hash] for s in runs]).encode()).hexdigest()
     header = {"type": "header", "format": JOURNAL_FORMAT, "key": key,
               "fingerprint": fingerprint, "fmu_guid": md.guid, "fmu_sha256": digest,
-              "batteries": [[b.name, b.source] for b in batteries], "runs": len(runs)}
+              "batteries": [[b.name, b.source] for b in batteries], "runs": len(runs),
+              "seed_offset": offsets.pop() if len(offsets) == 1 else sorted(offsets)}
     journal = Journal(out / JOURNAL_NAME, header, resume, overwrite,
                       {(s.battery, s.run_id): s.run_hash for s in runs})
     for warning in journal.warnings[:20]:

@@ -14,12 +14,19 @@ from papwc.controllers.settings import ControllerSettings
 from papwc.errors import ScenarioError
 from papwc.limits import MAX_RUNS, MAX_STEPS, check_steps
 from papwc.master import Maneuver
+from papwc.model.maneuver import MANEUVER_VARIABLES
+from papwc.model.plant import PLANT_PARAMETERS
+from papwc.model.variables import by_name
 from papwc.scenario import (
     PLANT_FIELDS,
     parse_scenario,
 )
 
 # --- resolving runs -------------------------------------------------------------------------
+
+#: The model layer's variables of the seeds a seed offset shifts.
+_SEED_VARIABLES = {"plant.seed": by_name(PLANT_PARAMETERS)["seed"],
+                   "maneuver.noise_seed": by_name(MANEUVER_VARIABLES)["noise_seed"]}
 
 
 @dataclass
@@ -119,10 +126,11 @@ def _hash(data: dict) -> str:
 
 
 def _apply_draws(battery: Battery, data: dict, draw: int) -> None:
-    """Replace the drawn fields of ``data`` (one grid point) for draw ``draw``."""
+    """Replace the drawn fields of ``data`` (one grid point) for draw ``draw`` (from the seed
+    of the draws plus the battery's seed offset)."""
     ordered = [d for d in battery.draws if d.of is None] + [d for d in battery.draws if d.of]
     for d in ordered:
-        u = _uniform(battery.seed, draw, d.path)
+        u = _uniform(battery.seed + battery.seed_offset, draw, d.path)
         of_value = None
         if d.of is not None:
             of_value = get_field(data, d.of)
@@ -141,6 +149,40 @@ def _apply_draws(battery: Battery, data: dict, draw: int) -> None:
                     f"{battery.source}: [monte_carlo] field {d.path!r}: the nominal value "
                     f"is {nominal!r}; give it in the file or use low/high or mean/std")
             _set_field(data, d.path, d.value(u, nominal, of_value), table)
+
+
+#: The seeds of a run that ``--seed-offset`` shifts (beside the draws' seed).
+SHIFTED_SEEDS = ("plant.seed", "maneuver.noise_seed")
+
+
+def _shift_seeds(battery: Battery, data: dict, where: str) -> None:
+    """Add the battery's seed offset to every seed of one run's ``data``.
+
+    Raises
+    ------
+    ScenarioError
+        If a shifted seed leaves its range (the model layer's).
+    """
+    offset = battery.seed_offset
+    for path in SHIFTED_SEEDS:
+        head, name = path.split(".")
+        variable = _SEED_VARIABLES[path]
+        seed = get_field(data, path)
+        if not (isinstance(seed, int) and not isinstance(seed, bool)):
+            continue  # an invalid seed is the run's own error (parse_scenario names it)
+        shifted = seed + offset
+        if not variable.min <= shifted <= variable.max:
+            raise ScenarioError(f"--seed-offset {offset}: {where}: {path} = {seed} becomes "
+                                f"{shifted}, outside {variable.min}..{variable.max}; give a "
+                                "smaller offset")
+        data.setdefault(head, {})[name] = shifted
+
+
+def _run_hash(battery: Battery, data: dict) -> str:
+    """The run's hash: of its data, and of the seed offset when there is one."""
+    if not battery.seed_offset:
+        return _hash(data)
+    return _hash({"data": data, "seed_offset": battery.seed_offset})
 
 
 def check_size(batteries: list[Battery], max_runs: int = MAX_RUNS) -> None:
@@ -211,9 +253,11 @@ def plan_runs(batteries: list[Battery], max_runs: int = MAX_RUNS,
                         [f"s{gi:0{gw}d}"] if battery.sweep else []) + (
                         [f"d{di:0{dw}d}"] if battery.monte_carlo else [])
                     run_id = "-".join(ids) or "nominal"
-                    spec = RunSpec(battery.name, run_id, (bi, gi, di), data, _hash(data),
-                                   case=case)
                     where = f"{battery.source} run {run_id}"
+                    if battery.seed_offset:
+                        _shift_seeds(battery, data, where)
+                    spec = RunSpec(battery.name, run_id, (bi, gi, di), data,
+                                   _run_hash(battery, data), case=case)
                     try:
                         scenario = parse_scenario(data, where)
                     except ScenarioError as exc:

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from papwc.battery.plan import RunSpec, controller_tables, get_field
 from papwc.battery.schema import Battery
+from papwc.battery.spec import RATIO_SLACK, SPEC_COLUMNS, spec_markdown, spec_rows
 from papwc.controllers.settings import ControllerSettings
 from papwc.output_files import save_figure
 from papwc.results.pulses import ROW_COLUMNS
@@ -24,16 +25,6 @@ from papwc.scenario import (
 #: whether the iteration ended farther from the target than it started.
 METRICS = ("final_error_m", "pulses", "settle_time_s", "limit_cycle", "cycle_p2p_m",
            "b_hat", "f_c_hat", "outcome", "outcome_reason", "pulse_ratio", "ends_farther")
-#: A pulse whose ratio exceeds 1 by more than this (rounding of the replayed plant) ran away.
-RATIO_SLACK = 1e-9
-#: Error that separates the spec's two classes of pulses, and its first success band, m: a
-#: pulse fired at abs(e) >= NEAR_M must never run away; below, a share of them may.
-NEAR_M = 1e-6
-#: Columns of the spec table (spec.csv; summary.md shows them per battery), see spec_rows.
-SPEC_COLUMNS = ("battery", "case", "controller", "kind", "runs", "errors", "within_1um",
-                "counted_runs", "within_count", "settle_median_s", "settle_p95_s",
-                "pulses_far", "runaway_far", "pulses_near", "runaway_near",
-                "largest_runaway_m", "maneuvers", "farther", "false_settled", "time_ended")
 
 
 def _label_of(table: dict, i: int) -> str:
@@ -136,112 +127,6 @@ def pulse_rows(runs: list[RunSpec], records: dict, has_cases: bool) -> list[dict
     return out
 
 
-def _runaway(pulse: dict) -> bool:
-    return float(pulse["ratio"]) > 1.0 + RATIO_SLACK
-
-
-def spec_rows(batteries: list[Battery], runs: list[RunSpec], records: dict,
-              rows: list[dict]) -> list[dict]:
-    """The spec's figures per battery, case and controller (keys :data:`SPEC_COLUMNS`).
-
-    From the last iteration of each run (``rows``: :func:`result_rows`): ``runs``,
-    ``errors`` (status error), ``within_1um`` (runs with status ok and abs(final error)
-    <= 1 um), ``counted_runs`` and ``within_count`` (of the runs whose plant has an encoder
-    count ``x_resolution`` > 0, those ending within one count), ``settle_median_s`` and
-    ``settle_p95_s`` (over the runs with status ok, the settle time of a run that ended
-    ``settled``, inf for one that did not), ``false_settled`` and ``time_ended``. Over every
-    iteration: ``pulses_far`` and ``runaway_far`` (pulses that moved, fired at abs(e) >= 1
-    um, and those of them beyond the bound max(1.5*abs(e) + one count, the smallest pulse)),
-    ``pulses_near`` and ``runaway_near`` (the same below 1 um), ``largest_runaway_m`` (the
-    largest abs(displacement) of a runaway pulse, 0 without one), ``maneuvers`` and
-    ``farther`` (iterations, and those that ended farther from the target than they started).
-    """
-    import statistics
-
-    import numpy as np
-
-    by_key = {(s.battery, s.run_id): s for s in runs}
-    groups: dict[tuple, dict] = {}
-    for r in rows:
-        spec = by_key[(r["battery"], r["run_id"])]
-        key = (r["battery"], r.get("case", ""), r["controller"])
-        g = groups.setdefault(key, {"kind": r["kind"], "last": [], "all": [], "pulses": []})
-        g["all"].append(r)
-        if r["last_iteration"]:
-            q = get_field(spec.data, "plant.x_resolution")
-            g["last"].append((r, float(q) if q is not None else 0.0))
-    for spec in runs:
-        for c in records[(spec.battery, spec.run_id)]["controllers"]:
-            key = (spec.battery, spec.case, c["label"])
-            if key in groups:
-                groups[key]["pulses"] += c.get("pulses", [])
-    out = []
-    for (battery, case, label), g in groups.items():
-        ok = [(r, q) for r, q in g["last"] if r["status"] == "ok"]
-        counted = [(r, q) for r, q in ok if q > 0.0]
-        settle = [r["settle_time_s"] if r.get("outcome") == "settled" else math.inf
-                  for r, _ in ok]
-        moving = [p for p in g["pulses"] if float(p["d_m"]) != 0.0]
-        far = [p for p in moving if abs(float(p["e_m"])) >= NEAR_M]
-        near = [p for p in moving if not abs(float(p["e_m"])) >= NEAR_M]
-        runaway = [p for p in moving if _runaway(p)]
-        out.append({
-            "battery": battery, "case": case, "controller": label, "kind": g["kind"],
-            "runs": len(g["last"]), "errors": len(g["last"]) - len(ok),
-            "within_1um": sum(1 for r, _ in ok if abs(r["final_error_m"]) <= NEAR_M),
-            "counted_runs": sum(1 for _, q in g["last"] if q > 0.0),
-            "within_count": sum(1 for r, q in counted if abs(r["final_error_m"]) <= q),
-            "settle_median_s": float(statistics.median(settle)) if settle else math.nan,
-            "settle_p95_s": (float(np.percentile(settle, 95, method="higher")) if settle
-                             else math.nan),
-            "pulses_far": len(far), "runaway_far": sum(1 for p in far if _runaway(p)),
-            "pulses_near": len(near), "runaway_near": sum(1 for p in near if _runaway(p)),
-            "largest_runaway_m": max((abs(float(p["d_m"])) for p in runaway), default=0.0),
-            "maneuvers": sum(1 for r in g["all"] if r["status"] == "ok"),
-            "farther": sum(1 for r in g["all"] if r["status"] == "ok"
-                           and r.get("ends_farther") is True),
-            "false_settled": sum(1 for r, _ in g["last"] if r.get("false_settled")),
-            "time_ended": sum(1 for r, _ in ok if r.get("outcome_reason") == "time_ended"),
-        })
-    return out
-
-
-def _share(n: int, of: int) -> str:
-    return f"{n} of {of} ({n / of:.1%})" if of else "–"
-
-
-def spec_markdown(battery: Battery, spec: list[dict]) -> list[str]:
-    """Lines of summary.md's spec table of one battery (from :func:`spec_rows`)."""
-    first = "| case " if battery.cases else ""
-    lines = ["### Spec", "",
-             "Last iteration: runs within 1 um and within one encoder count (of the runs "
-             "with a count), the settle time (median and p95 over the runs; inf: more "
-             "than that share did not end `settled`), false `settled` and `time_ended`. "
-             "Every iteration: runaway pulses (beyond max(1.5*abs(e) + one count, the "
-             "smallest pulse), `papwc.results.pulses`) of the pulses that moved, fired at "
-             "abs(e) >= 1 um and below, the largest move of a runaway pulse, and the "
-             "maneuvers that ended farther from the target than they started. Every pulse "
-             "is in `pulses.csv`.", "",
-             first + "| controller | runs | within 1 um | within one count | settle median "
-             "(s) | settle p95 (s) | runaway at abs(e) >= 1 um | runaway below 1 um | "
-             "largest runaway move (m) | farther | false settled | time_ended |",
-             ("|---" if battery.cases else "")
-             + "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for r in spec:
-        if r["battery"] != battery.name:
-            continue
-        lines.append(
-            (f"| {r['case']} " if battery.cases else "")
-            + f"| {r['controller']} | {r['runs']} | {_share(r['within_1um'], r['runs'])} | "
-            f"{_share(r['within_count'], r['counted_runs'])} | "
-            f"{_fmt(r['settle_median_s'], '.3f')} | {_fmt(r['settle_p95_s'], '.3f')} | "
-            f"{_share(r['runaway_far'], r['pulses_far'])} | "
-            f"{_share(r['runaway_near'], r['pulses_near'])} | "
-            f"{_fmt(r['largest_runaway_m'], '.3g')} | {r['farther']} of {r['maneuvers']} | "
-            f"{r['false_settled']} | {r['time_ended']} |")
-    return lines + [""]
-
-
 def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[dict],
                      fmu_sha256: str, spec_table: list[dict] | None = None) -> str:
     """The text of summary.md (with ``spec_table``, from :func:`spec_rows`: each battery's
@@ -262,13 +147,14 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
               "within its tolerance at rest, as it measured), else `stopped` with its reason; "
               "*false settled* counts the runs it called settled while the true |final error| "
               "exceeds the success tolerance. **No runaway**, over every iteration: *pulse "
-              "ratio* is the largest ratio of a pulse's displacement (to the next rest) to the "
-              "larger of 1.5*|e| + one encoder count and the smallest pulse the controller "
-              "can make (one sample at its lowest height, on the run's plant in its state "
-              "then; `papwc.results.pulses`), > 1 a runaway pulse; *runaway maneuvers* "
-              "counts the maneuvers (iterations) with a runaway pulse (a ratio above "
-              "1 + 1e-9: the replay's rounding); *farther* counts the maneuvers that ended "
-              "farther from the target than they started.", ""]
+              "ratio* is the largest ratio of a pulse's displacement (to the next rest) to its "
+              "bound, the larger of 1.5*|e| + one encoder count and the table's quantum (one "
+              "sample at the highest breakaway force the table's parameters allow, from "
+              "rest; it depends on the table only, `papwc.results.pulses`), > 1 a pulse "
+              "beyond its bound; *runaway maneuvers* counts the maneuvers (iterations) with "
+              "a pulse beyond its bound (a ratio above 1 + 1e-9: rounding); *farther* counts "
+              "the maneuvers that ended farther from the target than they started. Which of "
+              "those pulses the spec forbids outright: the spec tables.", ""]
     last = [r for r in rows if r["last_iteration"]]
     for battery in batteries:
         b_runs = [s for s in runs if s.battery == battery.name]
@@ -280,6 +166,8 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
                   f"File `{battery.source}`: {len(b_runs)} runs ({cases}{grid} grid point(s) × "
                   f"{battery.n} draw(s)"
                   + (f", seed {battery.seed}" if battery.monte_carlo else "")
+                  + (f"; every seed offset by {battery.seed_offset} (--seed-offset)"
+                     if battery.seed_offset else "")
                   + f"); success tolerance: {tol}.", ""]
         if battery.varied:
             lines += ["Varied: " + ", ".join(f"`{p}`" for p in battery.varied) + ".", ""]
@@ -411,16 +299,18 @@ def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], reco
                + ["controller", "kind", "iteration", *ROW_COLUMNS])
     spec_table = spec_rows(batteries, runs, records, rows)
     write_rows(paths[4], spec_table, SPEC_COLUMNS)
+    by_name = {b.name: b for b in batteries}
     run_rows = []
     for spec in runs:
         rec = records[(spec.battery, spec.run_id)]
         row = {"battery": spec.battery, "run_id": spec.run_id, "run_hash": spec.run_hash}
         if has_cases:
             row["case"] = spec.case
-        row.update({"status": rec["status"], "message": rec["message"], **_flatten(spec.data)})
+        row.update({"status": rec["status"], "message": rec["message"],
+                    "seed_offset": by_name[spec.battery].seed_offset, **_flatten(spec.data)})
         run_rows.append(row)
     run_columns = ["battery", "run_id", "run_hash"] + (["case"] if has_cases else []) + [
-        "status", "message"]
+        "status", "message", "seed_offset"]
     run_columns += list(dict.fromkeys(k for r in run_rows for k in r if k not in run_columns))
     write_rows(paths[1], run_rows, run_columns)
     write_text(paths[2], summary_markdown(batteries, runs, rows, fmu_sha256, spec_table))

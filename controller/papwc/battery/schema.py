@@ -98,6 +98,9 @@ class Battery:
         Error band of a success, m; ``None``: each controller's tolerance.
     run_timeout : float
         Time limit of one run, s (``[battery] run_timeout``).
+    seed_offset : int
+        Added to every seed of the runs (``papwc battery --seed-offset``): the draws' ``seed``,
+        each run's ``plant.seed`` and ``maneuver.noise_seed`` (0: the file's own).
     """
 
     name: str
@@ -112,6 +115,7 @@ class Battery:
     monte_carlo: bool = False
     success_tolerance: float | None = None
     run_timeout: float = DEFAULT_RUN_TIMEOUT
+    seed_offset: int = 0
 
     @property
     def grid_points(self) -> int:

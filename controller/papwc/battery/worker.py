@@ -86,14 +86,15 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         ``"error"``), ``message``, and per controller its label, kind,
         tolerance, error and the metrics of every iteration (those of
         :func:`papwc.master.summarize`, the largest ratio of a pulse's
-        displacement to its bound, :func:`papwc.results.pulses.pulse_ratio`, and
+        displacement to its bound, :meth:`papwc.results.pulses.PulseBound.ratios` (the
+        table's quantum computed once per run, on the FMU's C plant where it has one), and
         whether the iteration ended farther from the target than it started),
         and ``pulses``: every pulse of every iteration (:func:`pulse_rows`).
         Exceptions are caught and recorded, never raised.
     """
     from papwc.interrupts import RunTimeout
     from papwc.master.native_plant import plant_library
-    from papwc.results.pulses import pulse_ratio
+    from papwc.results.pulses import PulseBound
     from papwc.results.summary import summarize
     from papwc.scenario_run import run_scenario
 
@@ -107,11 +108,11 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         scenario = parse_scenario(task["data"], f"{task['source']} run {task['run_id']}")
         results = run_scenario(scenario, "fmu", fmu_path, unzip_dir=unzip_dir,
                                timeout=task.get("timeout"))
+        bound = PulseBound(scenario.plant, scenario.maneuver.T, plant_library(unzip_dir))
         for result in results:
             settings = result.settings
             iterations = []
-            ratios = pulse_ratio(result.traces, scenario.plant, scenario.maneuver.T,
-                                 plant_library(unzip_dir))
+            ratios = bound.ratios(result.traces)
             for trace, ratio in zip(result.traces, ratios, strict=True):
                 metrics = summarize(trace, settings.tolerance)
                 iterations.append({"iteration": trace.iteration, **metrics,
@@ -120,7 +121,7 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
             entry = {"label": result.label, "kind": settings.kind,
                      "tolerance": settings.tolerance, "error": result.error,
                      "iterations": iterations,
-                     "pulses": pulse_rows(result.traces, scenario.plant, scenario.maneuver.T)}
+                     "pulses": pulse_rows(result.traces, bound)}
             warning = scenario.warnings_of(result.label)
             if warning:
                 entry["warning"] = warning
@@ -140,12 +141,9 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
     return record
 
 
-def pulse_rows(traces, plant: dict, T: float) -> list[dict]:
+def pulse_rows(traces, bound) -> list[dict]:
     """Every pulse of every iteration as a row of ``papwc run``'s pulses.csv, its iteration
-    first (:meth:`papwc.results.pulses.PulseBound.rows`)."""
-    from papwc.results.pulses import PulseBound
-
-    bound = PulseBound(plant, T)
+    first (:meth:`papwc.results.pulses.PulseBound.rows` of ``bound``, the run's table)."""
     return [{"iteration": trace.iteration, **row} for trace in traces
             for row in bound.rows(trace)]
 

@@ -23,12 +23,15 @@ examples:
   papwc battery scenarios/robustness.toml --workers 2 --out results/rob
   papwc battery scenarios/robustness.toml --out results/rob --resume   # after Ctrl-C or a kill
   papwc battery a.toml b.toml --out results/ab --quiet    # two batteries, one results.csv
+  papwc battery scenarios/realism_mc.toml --seed-offset 1000 --out results/mc_oos
+  papwc spec results/realism_mc results/mc_oos      # tuned and out of sample side by side
   dask scheduler --host 127.0.0.1 --port 8786 --no-dashboard &
   dask worker tcp://127.0.0.1:8786 --nworkers 2 --nthreads 1 --no-dashboard &
   papwc battery scenarios/robustness.toml --scheduler tcp://127.0.0.1:8786
 
 writes into the output folder: results.csv (one row per run, controller and
-iteration), runs.csv (every resolved parameter per run), summary.md, the plots
+iteration), runs.csv (every resolved parameter per run), pulses.csv (every pulse
+and its bound), spec.csv (the spec's figures and verdicts), summary.md, the plots
 final_error_<battery>.png, and journal.jsonl (finished runs, for --resume).
 exit code: 0 if every run succeeded in running, 1 if a run has status error
 (or a file cannot be written), 2 if a battery file or an option is wrong, 130
@@ -63,6 +66,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="refuse batteries of more than N runs or grid points together "
                              f"(default {MAX_RUNS})")
     add_max_steps(parser)
+    from papwc.limits import whole_number
+    from papwc.model.plant import PLANT_PARAMETERS
+
+    seed_max = next(v.max for v in PLANT_PARAMETERS if v.name == "seed")
+    parser.add_argument("--seed-offset", type=whole_number(0, int(seed_max)), default=0,
+                        metavar="N",
+                        help="add N to every seed: the Monte Carlo draws' seed, each run's "
+                             "plant.seed and maneuver.noise_seed (judge a controller on "
+                             "tables it was not tuned on; compare with `papwc spec`); "
+                             "default 0, the file's own")
 
 
 #: Largest ``--workers`` per core this process may run on.
@@ -88,6 +101,8 @@ def run(args: argparse.Namespace) -> int:
         raise BatteryError(f"--scheduler {args.scheduler!r}: not a Dask scheduler address; "
                            "write tcp://HOST:PORT (e.g. tcp://127.0.0.1:8786)")
     batteries = [load_battery(f) for f in args.files]
+    for battery in batteries:
+        battery.seed_offset = args.seed_offset
     from papwc.battery.plan import check_size
 
     check_size(batteries, args.max_runs)
@@ -109,7 +124,8 @@ def run(args: argparse.Namespace) -> int:
         extra = "".join(f" {flag} {shlex.quote(str(value))}" for flag, value in (
             ("--fmu", args.fmu), ("--scheduler", args.scheduler), ("--workers", args.workers),
             ("--max-runs", args.max_runs if args.max_runs != MAX_RUNS else None),
-            ("--max-steps", args.max_steps if args.max_steps != MAX_STEPS else None))
+            ("--max-steps", args.max_steps if args.max_steps != MAX_STEPS else None),
+            ("--seed-offset", args.seed_offset or None))
             if value is not None) + (" --quiet" if args.quiet else "")
         what = "terminated (SIGTERM)" if _TERMINATED["by"] else "interrupted"
         print(f"papwc battery: {what}: {stop.done} of {stop.total} runs are in the "

@@ -16,6 +16,8 @@ examples:
                                    # build/pythonfmu/FrictionPlant.fmu, built if missing)
   papwc bench --realism            # also scenarios/realism.toml with the native and the
                                    # pythonfmu plant (a few minutes)
+  papwc bench --fmu-dir build --only "update time"   # one section: each controller kind's
+                                   # update against T/2 (R7, about 2 min; --quick: 10 s)
 """
 
 
@@ -36,6 +38,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         "--realism", action="store_true",
         help="also run scenarios/realism.toml on 2 workers and print its wall time",
     )
+    parser.add_argument(
+        "--only", default=None, metavar="TEXT",
+        help="run only the sections whose title holds TEXT (case ignored)",
+    )
 
 
 def run(args: argparse.Namespace) -> int:
@@ -45,7 +51,17 @@ def run(args: argparse.Namespace) -> int:
     from papwc.fmubuild.fmus import build_all, build_fmu
 
     sections = load_sections()
-    options = frozenset(["realism"] if args.realism else [])
+    if args.only is not None:
+        chosen = [s for s in sections if args.only.lower() in s.title.lower()]
+        if not chosen:
+            from papwc.errors import PapwcError
+
+            raise PapwcError(f"--only {args.only!r}: no section's title holds it; sections: "
+                             + "; ".join(s.title for s in sections))
+        sections = chosen
+    # a section named by --only runs even if it is opt-in
+    options = frozenset(s.option for s in sections if s.option) if args.only is not None \
+        else frozenset(["realism"] if args.realism else [])
     if args.fmu_dir is not None:
         # the pythonfmu plant beside the native one, built before any FMU is loaded
         pythonfmu_plant = args.fmu_dir / PYTHONFMU_PLANT

@@ -12,11 +12,11 @@ binary for this platform, one built from other tables) it gives None, and the ca
 uses :class:`papwc.model.dynamics.Plant`.
 
 :class:`NativePlant` has the interface of :class:`papwc.model.dynamics.Plant` that the
-runaway bound uses (:mod:`papwc.results.pulses`): ``reset``, ``state``/``set_state``,
-``step(u, h)`` returning None or why it is refused, ``x``, ``v``, ``x_meas()``,
-``stuck``. The C plant equals ``Plant`` bit for bit (tests/unit/test_native_physics.py),
-so a trace replayed on either gives the same numbers; in C a step with a deviation costs
-microseconds instead of the model layer's 0.2-1.5 ms.
+table's quantum uses (:mod:`papwc.results.quantum`, the runaway bound's floor):
+``reset``, ``state``/``set_state``, ``step(u, h)`` returning None or why it is refused,
+``x``, ``v``, ``x_meas()``, ``stuck``. The C plant equals ``Plant`` bit for bit
+(tests/unit/test_native_physics.py), so the quantum is the same on either; in C a step with
+a deviation costs microseconds instead of the model layer's 0.2-1.5 ms.
 """
 
 from __future__ import annotations

@@ -6,20 +6,20 @@ next rest the controller acted on: the start of the next pulse, the first
 sample of coarse feedback after it, or else the end of the iteration. The error
 before it is ``x_ref - x`` at its start.
 
-A pulse *runs away* when its displacement exceeds both ``1.5*|e| + q`` (``q``
-the encoder's count) and the smallest pulse the controller can make: one sample
-at its lowest amplitude -- the controller's output ``f_low`` when the pulse
-starts (PWC: f_p_max, so d_min of Eq. (19); PAPWC: its amplitude floor; exact:
-its ``f_floor``), or the pulse's own height if lower -- displaced on the plant
-of the run itself, in the state the plant was in at the pulse's start (the
-model layer's :class:`papwc.model.dynamics.Plant` replayed with the trace's
-forces), over the same samples, so that a deviation which makes every pulse
-longer (or a drive still ringing from the last one) does not count against the
-controller. The height is at least the breakaway force in effect then (random
-stiction draws it anew at every stop; ripple makes it depend on x). A run on a native
-FrictionPlant.fmu is replayed on that FMU's own C plant, called in process
-(:mod:`papwc.master.native_plant`; bit for bit the model layer's, in microseconds a step
-instead of milliseconds with a deviation).
+Its bound is ``bound_m = max(1.5*abs(e) + q, quantum_m)``: ``q`` the encoder's count
+(``x_resolution``) and ``quantum_m`` the table's quantum (:mod:`papwc.results.quantum`),
+the move of one sample at the highest breakaway force the table's parameters allow
+(``band_top_N``), from rest. Both depend on the table and the error only: nothing a
+controller outputs enters the bound, so no controller can set its own. A pulse
+*runs away* when its displacement exceeds the bound (``ratio = abs(d)/bound_m > 1``).
+
+Which runaway the spec forbids outright depends on the error and on the pulse
+(:func:`pulse_class`; the physics in docs/_incoming/43-the-bound.md): a one-sample pulse
+near the breakaway force moves anything from zero to tens of micrometres depending on where
+in its band the stiction was drawn, so a hard bound holds for it only from
+:data:`FAR_M` of error; a *planned* pulse (two samples or more, or one sample above
+``u_break_N``, the commanded height that breaks the table away at ``band_top_N``) has no
+such excuse at any error from :data:`NEAR_M`.
 
 :func:`pulse_ratio` gives, per iteration, the largest ratio of a pulse's
 displacement to that bound (> 1: a runaway pulse).
@@ -35,19 +35,23 @@ from typing import TYPE_CHECKING, Any
 from papwc.controllers import Mode
 from papwc.master.trace import Trace
 from papwc.model.plant import PLANT_DEFAULTS
+from papwc.results.quantum import table_quantum
 
 if TYPE_CHECKING:
     from papwc.master.native_plant import NativePlantLibrary
 
-__all__ = ["ROW_COLUMNS", "Pulse", "PulseBound", "pulse_ratio", "pulses_of"]
+__all__ = ["FAR_M", "NEAR_M", "ROW_COLUMNS", "RUNAWAY_FACTOR", "Pulse", "PulseBound",
+           "pulse_class", "pulse_ratio", "pulses_of"]
 
 #: Factor on abs(e) of the bound.
 RUNAWAY_FACTOR = 1.5
+#: Error from which every pulse, of any width, must stay within its bound, m.
+FAR_M = 5e-5
+#: Error from which a planned pulse must stay within its bound, m (below: the last micrometre).
+NEAR_M = 1e-6
 #: Keys of :meth:`PulseBound.rows`, in order (SI units; see there).
-ROW_COLUMNS = ("pulse", "t_s", "samples", "amplitude_N", "e_m", "d_m", "smallest_m", "bound_m",
-               "ratio")
-#: Longest coast simulated for the smallest pulse, s.
-_COAST_MAX = 2.0
+ROW_COLUMNS = ("pulse", "t_s", "samples", "amplitude_N", "e_m", "d_m", "band_top_N",
+               "u_break_N", "quantum_m", "bound_m", "ratio")
 
 
 @dataclass(frozen=True)
@@ -94,14 +98,7 @@ def pulses_of(trace: Trace) -> list[Pulse]:
 
 
 class PulseBound:
-    """The smallest pulse a controller can make on the plant of a run, by simulation.
-
-    The plant of the run (:class:`papwc.model.dynamics.Plant` with the run's
-    parameters) is replayed with the forces of the trace, so that at every
-    pulse its full state is known (a flexible drive still ringing, the
-    breakaway force drawn, the lag's force); from that state the smallest pulse
-    -- one sample at the lowest amplitude -- is simulated over the same samples
-    as the pulse's span.
+    """The bound of the pulses of every trace on one table (see the module).
 
     Parameters
     ----------
@@ -111,7 +108,7 @@ class PulseBound:
         Sample period, s.
     library : NativePlantLibrary, optional
         The C plant of the run's native FMU (:func:`papwc.master.native_plant.plant_library`):
-        the replay steps it instead of the model layer's Plant (the same numbers).
+        the quantum is computed on it instead of the model layer's Plant (the same numbers).
     """
 
     def __init__(self, plant: Mapping[str, Any], T: float,
@@ -119,36 +116,16 @@ class PulseBound:
         p = {**PLANT_DEFAULTS, **plant}
         self.q = float(p["x_resolution"])
         self.T = float(T)
-        self.params = dict(p)
-        self.library = library
+        self.quantum = table_quantum(p, self.T, library)
 
-    def _plant(self):
-        if self.library is not None:
-            from papwc.master.native_plant import NativePlant
-
-            return NativePlant(self.library, self.params)
-        from papwc.model.dynamics import Plant
-
-        return Plant(self.params)
+    def bound(self, e: float) -> float:
+        """``max(1.5*abs(e) + q, quantum_m)`` for a pulse fired at the error ``e`` (m), m."""
+        return max(RUNAWAY_FACTOR * abs(e) + self.q, self.quantum.move)
 
     def ratios(self, traces: Sequence[Trace]) -> list[float]:
-        """Largest ratio of a pulse's displacement to its bound, per trace (0 without pulses).
-
-        ``traces`` are iterations of one controller, each from the plant's
-        initial state. The smallest pulse is simulated only for a pulse beyond
-        ``1.5*|e| + q`` that could raise the largest ratio.
-        """
-        out = []
-        for trace in traces:
-            worst = 0.0
-            check = _Check(self, trace)
-            for p in pulses_of(trace):
-                ratio = check.cheap_ratio(p)
-                if ratio > 1.0 and ratio > worst:
-                    ratio = check.ratio(p)
-                worst = max(worst, ratio)
-            out.append(worst)
-        return out
+        """Largest ratio of a pulse's displacement to its bound, per trace (0 without pulses)."""
+        return [max((_divide(abs(p.d), self.bound(p.e)) for p in pulses_of(trace)),
+                    default=0.0) for trace in traces]
 
     def rows(self, trace: Trace) -> list[dict[str, Any]]:
         """One row per pulse of a trace: where it starts, its width, height, error, bound, ratio.
@@ -156,19 +133,18 @@ class PulseBound:
         Keys (SI units): ``pulse`` (1, 2, ... in the iteration), ``t_s`` (its
         start), ``samples`` (of non-zero force from its start), ``amplitude_N``
         (signed largest force), ``e_m`` (error before it), ``d_m`` (signed
-        displacement to the next rest), ``smallest_m`` (the smallest pulse from
-        the plant's state then, see the class), ``bound_m`` (the larger of
-        ``1.5*|e| + q`` and ``smallest_m``) and ``ratio`` (``|d_m|/bound_m``;
-        above 1 the pulse ran away).
+        displacement to the next rest), the table's ``band_top_N``, ``u_break_N`` and
+        ``quantum_m`` (:class:`papwc.results.quantum.Quantum`), ``bound_m`` (the larger of
+        ``1.5*abs(e) + q`` and ``quantum_m``) and ``ratio`` (``abs(d_m)/bound_m``; above 1
+        the pulse ran away).
         """
-        check = _Check(self, trace)
+        quantum = self.quantum
         out = []
         for i, p in enumerate(pulses_of(trace), 1):
-            small = check.smallest(p)
-            bound = max(check.cheap_bound(p), small)
+            bound = self.bound(p.e)
             out.append(dict(zip(ROW_COLUMNS, (
-                i, p.k * trace.T, p.samples, p.amplitude, p.e, p.d, small, bound,
-                _divide(abs(p.d), bound)), strict=True)))
+                i, p.k * trace.T, p.samples, p.amplitude, p.e, p.d, quantum.band_top,
+                quantum.u_break, quantum.move, bound, _divide(abs(p.d), bound)), strict=True)))
         return out
 
 
@@ -177,83 +153,42 @@ def _divide(d: float, bound: float) -> float:
     return d / bound if bound > 0.0 else (math.inf if d > 0.0 else 0.0)
 
 
-class _Check:
-    """The bound of the pulses of one trace; the plant is replayed only when needed."""
+def pulse_class(e: float, samples: int, amplitude: float, u_break: float) -> str:
+    """Which part of the spec judges a pulse beyond its bound (see the module).
 
-    def __init__(self, bound: PulseBound, trace: Trace) -> None:
-        self.bound = bound
-        self.trace = trace
-        self.lows = trace.columns.get("f_low")
-        self.replay: _Replay | None = None
+    Parameters
+    ----------
+    e : float
+        Error before the pulse, m.
+    samples : int
+        Its width, samples.
+    amplitude : float
+        Its signed largest force, N.
+    u_break : float
+        The table's commanded one-sample height that breaks it away at the band top, N.
 
-    def cheap_bound(self, p: Pulse) -> float:
-        """1.5*abs(e) + q, m."""
-        return RUNAWAY_FACTOR * abs(p.e) + self.bound.q
-
-    def cheap_ratio(self, p: Pulse) -> float:
-        """abs(d) / (1.5*abs(e) + q)."""
-        return _divide(abs(p.d), self.cheap_bound(p))
-
-    def smallest(self, p: Pulse) -> float:
-        """Absolute displacement of the smallest pulse from the state at p's start (0: none)."""
-        height = abs(p.amplitude)
-        f_low = height if self.lows is None else min(abs(self.lows[p.k]), height)
-        if not f_low > 0.0:
-            return 0.0
-        if self.replay is None:
-            self.replay = _Replay(self.bound._plant, self.trace)
-        return self.replay.smallest(p.k, p.end, math.copysign(f_low, p.amplitude))
-
-    def ratio(self, p: Pulse) -> float:
-        """abs(d) / max(1.5*abs(e) + q, the smallest pulse)."""
-        return _divide(abs(p.d), max(self.cheap_bound(p), self.smallest(p)))
-
-
-class _Replay:
-    """The run's plant driven with a trace's forces, state kept per row on demand."""
-
-    def __init__(self, make_plant, trace: Trace) -> None:
-        self.make_plant = make_plant
-        self.plant = make_plant()
-        self.u = trace.columns["u"]
-        self.T = trace.T
-        self.k = 0
-
-    def state_at(self, k: int) -> dict:
-        """The plant's state at row k (rows are replayed forward only)."""
-        plant = self.plant
-        while self.k < k:
-            u = self.u[self.k]
-            if plant.step(u if u == u else 0.0, self.T) is not None:
-                raise ValueError("the replay of the trace was refused by the plant")
-            self.k += 1
-        return plant.state()
-
-    def smallest(self, k0: int, end: int, f: float) -> float:
-        """Absolute displacement of one sample at f (N) from row k0's state, read at row ``end``.
-
-        The height is at least the breakaway force in effect there (random
-        stiction draws it anew at every stop; ripple makes it depend on x).
-        """
-        state = self.state_at(k0)
-        probe = self.make_plant()
-        probe.set_state(state)
-        x0 = probe.x
-        T = self.T
-        f_move = math.copysign(max(abs(f), probe._breakaway(x0) * (1.0 + 1e-9)), f)
-        if probe.step(f_move, T) is not None:
-            return math.inf
-        for _ in range(max(end - k0 - 1, 0)):
-            if probe.step(0.0, T) is not None:
-                return math.inf
-        return abs(probe.x - x0)
+    Returns
+    -------
+    str
+        ``"far"`` (abs(e) >= :data:`FAR_M`: hard, any width), ``"planned"`` (abs(e) >=
+        :data:`NEAR_M`, two samples or more or one above ``u_break``: hard), ``"mid"``
+        (a one-sample pulse at most ``u_break`` at :data:`NEAR_M` <= abs(e) < :data:`FAR_M`:
+        a share) or ``"near"`` (abs(e) < :data:`NEAR_M`: a share).
+    """
+    if abs(e) >= FAR_M:
+        return "far"
+    if not abs(e) >= NEAR_M:
+        return "near"
+    if samples >= 2 or abs(amplitude) > u_break:
+        return "planned"
+    return "mid"
 
 
 def pulse_ratio(traces: Sequence[Trace], plant: Mapping[str, Any], T: float,
                 library: NativePlantLibrary | None = None) -> list[float]:
     """Per trace, the largest ratio of a pulse's displacement to its bound (see the module).
 
-    ``library``: the C plant of the run's native FMU, replayed instead of Plant (see
+    ``library``: the C plant of the run's native FMU, on which the quantum is computed (see
     :class:`PulseBound`).
     """
     return PulseBound(plant, T, library).ratios(traces)
