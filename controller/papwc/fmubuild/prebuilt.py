@@ -93,7 +93,8 @@ def take(tree: Path, name: str, native_dir: Path = NATIVE_DIR) -> bool:
 
 
 def compile_all(native_dir: Path, log=print) -> list[Path]:
-    """Compile every native FMU's binaries into ``native_dir`` (run when papwc is installed).
+    """Compile every native FMU's binaries into ``native_dir`` (run when papwc is installed);
+    a model whose binaries there were compiled from its sources as they are is kept.
 
     Parameters
     ----------
@@ -116,6 +117,9 @@ def compile_all(native_dir: Path, log=print) -> list[Path]:
             continue
         source = recipe.native_source()
         with prepared_tree(source) as tree:
+            if take(tree, source.name, native_dir):
+                log(f"papwc: {source.name}'s binaries in {native_dir} are current")
+                continue
             log(f"papwc: compiling {source.name}'s binaries for "
                 + ", ".join(source_targets()) + " (zig; a first build compiles zig's C "
                 "runtimes, a few minutes)")
