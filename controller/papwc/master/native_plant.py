@@ -33,7 +33,7 @@ from papwc.model.dynamics import STATE_FIELDS
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_OUTPUTS, PLANT_PARAMETERS
 
 __all__ = ["API_SYMBOL", "API_VERSION", "NativePlant", "NativePlantLibrary",
-           "NativePlantError", "plant_library"]
+           "NativePlantError", "layout_struct", "plant_library"]
 
 #: The exported function that returns the table of the plant's functions.
 API_SYMBOL = "papwc_plant_api"
@@ -49,19 +49,20 @@ _COUNT_FIELDS = ("stick_draws", "noise_draws")
 _MSG_LEN = 512
 
 
-def _struct(name: str, fields: list[tuple[str, str, Any]]) -> type[ctypes.Structure]:
-    """A ctypes struct with ``fields`` (name, C type name, ctypes type), and its layout text."""
+def layout_struct(name: str, fields: list[tuple[str, str, Any]]) -> type[ctypes.Structure]:
+    """A ctypes struct with ``fields`` (name, C type name, ctypes type), and its layout text
+    (``"name:TYPE "`` per field, as a native binary's API table gives it)."""
     cls = type(name, (ctypes.Structure,), {"_fields_": [(n, t) for n, _, t in fields]})
     cls.layout = "".join(f"{n}:{c} " for n, c, _ in fields)
     return cls
 
 
 #: ``FpParams`` of plant_vars.h: one field per parameter, in the model layer's order.
-FpParams = _struct("FpParams", [(v.name, *_TYPES[v.type]) for v in PLANT_PARAMETERS])
+FpParams = layout_struct("FpParams", [(v.name, *_TYPES[v.type]) for v in PLANT_PARAMETERS])
 #: ``FpOutputs`` of plant_vars.h.
-FpOutputs = _struct("FpOutputs", [(v.name, *_TYPES[v.type]) for v in PLANT_OUTPUTS])
+FpOutputs = layout_struct("FpOutputs", [(v.name, *_TYPES[v.type]) for v in PLANT_OUTPUTS])
 #: ``FpState`` of plant.h: the fields of STATE_FIELDS.
-FpState = _struct("FpState", [(n, "FP_COUNT", ctypes.c_uint64) if n in _COUNT_FIELDS
+FpState = layout_struct("FpState", [(n, "FP_COUNT", ctypes.c_uint64) if n in _COUNT_FIELDS
                               else (n, "FP_REAL", ctypes.c_double) for n in STATE_FIELDS])
 
 _P_PARAMS, _P_STATE, _P_OUT = (ctypes.POINTER(FpParams), ctypes.POINTER(FpState),
