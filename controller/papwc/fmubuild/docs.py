@@ -67,8 +67,12 @@ def readme_tables() -> list[tuple[Path, str, str]]:
     """Each readme with a generated table: (path, tag, table)."""
     from papwc.scenario import field_table
 
-    found = [(recipe.folder / "readme.md", "variables", variable_table(recipe.variables))
-             for recipe in FMUS if (recipe.folder / "readme.md").is_file()]
+    found, seen = [], set()
+    for recipe in FMUS:  # (the two controller builds share one readme and their variables)
+        path = recipe.folder / "readme.md"
+        if path.is_file() and path not in seen:
+            seen.add(path)
+            found.append((path, "variables", variable_table(recipe.variables)))
     root = checkout_root()
     if root is not None and (root / "README.md").is_file():
         found.append((root / "README.md", "fields", field_table()))

@@ -5,9 +5,10 @@
 - the FMI glue written once for every native FMU (``fmu_src/fmi2/``: ``fmi2_cs.c``,
   ``fmu_model.h``),
 - the model's C files (``fmu_src/<Model>/*.c``, ``*.h``),
-- headers generated from the model layer: ``plant_vars.h``
-  (:mod:`papwc.fmubuild.native_tables`) and ``fmu_config.h`` (model identifier, GUID and
-  the words of each parameter's range, :func:`config_header`),
+- headers generated from the model layer: the model's tables
+  (:data:`papwc.fmubuild.native_tables.GENERATED_HEADERS`: ``plant_vars.h``,
+  ``controller_vars.h``) and ``fmu_config.h`` (model identifier, GUID and the words of each
+  parameter's range, :func:`config_header`),
 - the FMI 2.0 headers shipped in fmpy (``fmpy/c-code``);
 
 compiled with zig's C compiler (pip ``ziglang``: ``python -m ziglang cc``) for
@@ -17,7 +18,8 @@ folder     target                  what it needs at run time
 ========== ======================= ================================================
 linux64    x86_64-linux-gnu.2.17   glibc >= 2.17 (libc, libm); no libgcc_s, libstdc++
 win64      x86_64-windows-gnu      KERNEL32 and the system C runtime
-darwin64   x86_64-macos + aarch64  libSystem; one universal (fat) Mach-O of both
+darwin64   x86_64-macos.10.13 +    libSystem of macOS 10.13 (x86_64) or 11 (arm64) or
+           aarch64-macos.11.0      later; one universal (fat) Mach-O of both
 ========== ======================= ================================================
 
 The archive holds ``sources/`` (every C file and header, with ``<SourceFiles>`` in the
@@ -78,7 +80,8 @@ C_FLAGS: tuple[str, ...] = ("-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-m
 TARGETS: dict[str, tuple[tuple[str, ...], str, tuple[str, ...]]] = {
     "linux64": (("x86_64-linux-gnu.2.17",), ".so", ("-fPIC", "-static-libgcc", "-lm")),
     "win64": (("x86_64-windows-gnu",), ".dll", ()),
-    "darwin64": (("x86_64-macos", "aarch64-macos"), ".dylib", ("-fPIC",)),
+    # the oldest macOS each declares (zig's default would be the newest, 15.0)
+    "darwin64": (("x86_64-macos.10.13", "aarch64-macos.11.0"), ".dylib", ("-fPIC",)),
 }
 
 #: The FMI 2.0 headers a native FMU is compiled against (from fmpy's ``c-code``).
@@ -146,6 +149,8 @@ class NativeSource:
         Headings of the readme's sections copied into ``index.html`` (the equations).
     default_experiment : (float, float, float)
         Start time, stop time and step size, s.
+    variable_step : bool
+        ``canHandleVariableCommunicationStepSize`` (a sampled controller: False).
     """
 
     name: str
@@ -157,6 +162,7 @@ class NativeSource:
     reference: Path | None = None
     sections: tuple[str, ...] = ()
     default_experiment: tuple[float, float, float] = (0.0, 1.0, 0.01)
+    variable_step: bool = True
 
     def c_files(self) -> list[Path]:
         """The C sources and headers written by hand (glue and model), sorted."""
@@ -175,9 +181,9 @@ class NativeSource:
 
     def generated(self) -> dict[str, str]:
         """The generated headers (file name -> text), without the GUID."""
-        from papwc.fmubuild.native_tables import HEADER_NAME, plant_header
+        from papwc.fmubuild.native_tables import GENERATED_HEADERS
 
-        return {HEADER_NAME: plant_header()}
+        return {name: write() for name, write in GENERATED_HEADERS.get(self.name, {}).items()}
 
     def digest(self) -> str:
         """SHA-256 (hex) of everything the FMU is built from (sources, tables, flags, zig)."""
@@ -195,7 +201,8 @@ class NativeSource:
         if self.reference is not None:
             add("ref", Path(self.reference).read_bytes())
         add("extra", repr((list(self.variables), self.description, self.sections,
-                           self.default_experiment, C_FLAGS, sorted(TARGETS.items()),
+                           self.default_experiment, self.variable_step, C_FLAGS,
+                           sorted(TARGETS.items()),
                            zig_version(), _words(self.variables))).encode())
         add("builder", Path(__file__).read_bytes())
         return h.hexdigest()
@@ -329,7 +336,7 @@ def model_description_skeleton(source: NativeSource, guid_text: str,
     cs = ET.SubElement(root, "CoSimulation", {
         "modelIdentifier": source.name,
         "needsExecutionTool": "false",
-        "canHandleVariableCommunicationStepSize": "true",
+        "canHandleVariableCommunicationStepSize": "true" if source.variable_step else "false",
         "canInterpolateInputs": "false",
         "maxOutputDerivativeOrder": "0",
         "canRunAsynchronuously": "false",

@@ -299,7 +299,7 @@ def controller_tables() -> ControllerTables:
     settings = tuple(v for v in cs.CONTROLLER_SETTINGS if v.name != "kind")
     constants: dict[str, float | int] = {
         "MODE_PERIODS": cs.MODE_PERIODS, "DWELL_MAX": cs.DWELL_MAX,
-        "F_MODE_MAX_T": cs.F_MODE_MAX_T,
+        "F_MODE_MAX_T": cs.F_MODE_MAX_T, "STEP_RTOL": cs.STEP_RTOL,
         **{name: getattr(rest, name) for name in (
             "NOISE_WINDOW", "NOISE_DRIFT", "BAND_SIGMAS", "NOISE_DWELL", "NOISE_MEMORY",
             "RING_LEG", "RING_PERIODS", "RING_DWELL_MAX")},
@@ -415,6 +415,7 @@ def controller_header(tables: ControllerTables | None = None) -> str:
         _x_macro("PC_OUTPUT_FIELDS", [f"X({v.name}, {vrs[v.name]}, {_PC_TYPES[v.type][0]}, "
                                       f"{_pc_number(v.fmi_start, v, '0')})" for v in out_fields]),
         f"#define PC_VR_KIND {vrs['kind']}",
+        *(f"#define PC_VR_{v.name.upper()} {vrs[v.name]}" for v in (*t.inputs, *t.outputs)),
         f"#define PC_N_VARIABLES {len(t.variables)}",
         "",
         "/* X(code, name, native): the kinds by kind_code; native: the C controller has it. */",

@@ -135,7 +135,10 @@ class FmuSlave:
     restart_input : str, optional
         An Integer input whose change starts a new run of the FMU with what it
         has learned (PulseController.fmu's ``maneuver``): :meth:`restart`
-        increments it instead of restoring the initial state.
+        increments it instead of restoring the initial state. The FMU's communication
+        points then go on from where the last run ended (FMI 2.0: each step starts where the
+        last ended; a native FMU refuses another point): the master's time plus the
+        length of the runs before.
     """
 
     #: Instances that returned fmi2Fatal, kept so that nothing frees them.
@@ -166,6 +169,10 @@ class FmuSlave:
         self._fatal = False
         self.restart_input = restart_input
         self._restarts = 0
+        #: The FMU's communication point is the master's t plus this (s): the runs before
+        #: a restart by ``restart_input``; the end of the last step, in the FMU's time.
+        self._t_shift = 0.0
+        self._t_end = 0.0
         # Everything that opens the file goes through papwc.master.archive: a
         # failure is one FmuError naming the file, and the unpacked copy is removed.
         if unzip_dir is None:
@@ -449,6 +456,7 @@ class FmuSlave:
             refuse invalid parameters that way).
         """
         self.time = float(start_time)
+        self._t_shift, self._t_end = 0.0, self.time
         self._forget_inputs()
         if self._entered:
             # FMI 2.0 initializes an instance once: a native FMU is reset; a pythonfmu FMU,
@@ -493,6 +501,7 @@ class FmuSlave:
         self._forget_inputs()
         if self.restart_input is not None:
             self.time = float(start_time)
+            self._t_shift = self._t_end - self.time
             self._restarts += 1
             base = int(self._start.get(self.restart_input, 0))
             self._set_now({self.restart_input: base + self._restarts})
@@ -500,6 +509,7 @@ class FmuSlave:
             return
         if self._snapshot is not None:
             self.time = float(start_time)
+            self._t_shift, self._t_end = 0.0, self.time
             before = self.log.count
             self._call("fmi2SetFMUstate", lambda: self._fmu.setFMUstate(self._snapshot))
             refused = _refusals(self.log.since(before))
@@ -517,10 +527,11 @@ class FmuSlave:
         if step_size.value != h:
             step_size.value = h
         t_c = self._t
-        t_c.value = t
+        t_c.value = t + self._t_shift
         status = self._do_step(self._c, t_c, step_size, 1)
         if status > 1:
             self._check("fmi2DoStep", status)
+        self._t_end = t_c.value + h
         self._refresh()
 
     def _free_snapshot(self) -> None:
