@@ -26,6 +26,7 @@ import shutil
 import struct
 import subprocess
 import sys
+import tempfile
 import zipfile
 from pathlib import Path
 
@@ -492,3 +493,124 @@ def test_ten_thousand_instances_do_not_grow_the_memory(pulse_controller_unzipped
            grown)
     assert grown < 1 << 20
 
+
+# --- the master steps the C controller ---------------------------------------------------------
+
+def test_a_battery_gives_the_same_results_with_either_controller_build(
+        friction_plant_fmu: Path, pulse_controller_fmu: Path, tmp_path: Path) -> None:
+    """scenarios/realism.toml at one target and seed (its eight cases; pwc, papwc and pid in C
+    or in Python, exact in Python): results.csv, runs.csv and pulses.csv byte for byte."""
+    from papwc.battery import load_battery, run_battery
+
+    text = (PROJECT_DIR / "scenarios" / "realism.toml").read_text()
+    lines = [('"maneuver.x_ref" = [1e-3]' if line.startswith('"maneuver.x_ref"') else
+              '"plant.seed" = [2]' if line.startswith('"plant.seed"') else line)
+             for line in text.splitlines()]
+    battery_file = tmp_path / "realism_small.toml"
+    battery_file.write_text("\n".join(lines) + "\n")
+    battery = load_battery(battery_file)
+    outcomes = {}
+    for build, fmu in (("native", pulse_controller_fmu), ("python", None)):
+        outcomes[build] = run_battery([battery], tmp_path / build, friction_plant_fmu,
+                                      workers=1, progress=False, controller_fmu=fmu)
+        assert outcomes[build].runs == 8 and not outcomes[build].failed
+    for name in ("results.csv", "runs.csv", "pulses.csv"):
+        native = (tmp_path / "native" / name).read_bytes()
+        assert native == (tmp_path / "python" / name).read_bytes(), name
+    report("realism (1 mm, seed 2): run time native / python controllers",
+           f"{outcomes['native'].run_seconds:.1f} s / {outcomes['python'].run_seconds:.1f} s")
+
+
+def test_the_master_steps_the_c_controller_only_for_its_kinds(pulse_controller_fmu: Path) -> None:
+    from papwc.master.native_controller import (
+        NativeControllerSlave,
+        controller_slave,
+        fmu_controller_library,
+    )
+    from papwc.master.slave import ControllerSlave
+
+    library = fmu_controller_library(pulse_controller_fmu)
+    assert library is not None
+    for kind in ("pwc", "papwc", "pid"):
+        assert isinstance(controller_slave(ControllerSettings(kind=kind), T, library),
+                          NativeControllerSlave)
+    for kind in ("exact", "dual_loop"):
+        assert isinstance(controller_slave(ControllerSettings(kind=kind), T, library),
+                          ControllerSlave)
+    assert isinstance(controller_slave(ControllerSettings(), T, None), ControllerSlave)
+    assert fmu_controller_library(pulse_controller_fmu.with_name("missing.fmu")) is None
+
+
+# --- the library a drive links: the example of the docs -----------------------------------------
+
+@pytest.mark.parametrize("toolchain", ["cc", "zig"])
+def test_the_example_runs_the_papers_scenario_as_the_python_master(
+        tmp_path: Path, toolchain: str) -> None:
+    """fmu_src/PulseController/example/paper_scenario.c (docs/_incoming/45-c-controller.md
+    includes it) compiled by the system cc and by zig cc, both C99 with -Wall -Wextra
+    -Werror: its ten maneuvers (final position and error, pulses, outcome, reason) are
+    the Python master's run of scenarios/paper.toml's PAPWC (t_p_max = 0.03 s) on the
+    in-process plant, to the last bit (%.17g reads back exactly)."""
+    from papwc.fmubuild.native_tables import write_controller_header, write_plant_header
+    from papwc.master import PhysicsSlave, run_controller
+    from papwc.scenario import load_scenario
+
+    if toolchain == "cc":
+        command = [_cc()]
+    else:
+        from papwc.fmubuild.native_build import zig_command
+
+        command = [*zig_command(), "-target", "x86_64-linux-gnu.2.17"]
+    write_controller_header(tmp_path)
+    write_plant_header(tmp_path)
+    src = PROJECT_DIR / "fmu_src"
+    program = tmp_path / "paper_scenario"
+    done = subprocess.run([*command, "-std=c99", "-O2", "-ffp-contract=off", "-Wall", "-Wextra",
+                           "-Werror", "-I", str(tmp_path), "-I", str(src / "PulseController"),
+                           "-I", str(src / "FrictionPlant"), "-o", str(program),
+                           str(src / "PulseController" / "example" / "paper_scenario.c"),
+                           str(src / "PulseController" / "controller.c"),
+                           str(src / "FrictionPlant" / "plant.c"), "-lm"],
+                          capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "ZIG_GLOBAL_CACHE_DIR": str(
+                              Path(tempfile.gettempdir()) / "papwc-zig-cache")}, check=False)
+    assert done.returncode == 0, done.stderr
+    run = subprocess.run([str(program)], capture_output=True, text=True, timeout=120,
+                         env={"PATH": "/usr/bin:/bin"}, check=False)
+    assert run.returncode == 0, run.stderr
+    got = [line.split() for line in run.stdout.splitlines()]
+    paper = load_scenario(PROJECT_DIR / "scenarios" / "paper.toml")
+    settings = paper.controllers[2]
+    assert settings.kind == "papwc" and settings.t_p_max == 0.03
+    plant = PhysicsSlave()
+    plant.set_start_values(paper.plant)
+    result = run_controller(plant, settings, paper.maneuver)
+    assert not result.error and len(result.traces) == len(got) == 10
+    for fields, trace in zip(got, result.traces, strict=True):
+        x = trace.column("x")[-1]
+        assert (int(fields[0]), float(fields[1]), float(fields[2])) == (
+            trace.iteration, x, paper.maneuver.x_ref - x)
+        assert [int(f) for f in fields[3:]] == [trace.column(name)[-1] for name in
+                                                ("pulses", "outcome", "outcome_reason")]
+    assert got[-1][4] == "1"  # settled, within the tolerance
+
+
+
+# --- papwc bench's sections of the C controller -------------------------------------------------
+
+def test_the_bench_sections_measure_what_they_name(fmu_dir: Path) -> None:
+    """The sections run (quick) and give their rows; their figures are read by people from
+    ``papwc bench``, not asserted here."""
+    from papwc.bench import BenchContext
+    from papwc.bench.native_controller import native_closed_loop, realism_input, worst_update
+
+    text, runs = realism_input((1,))
+    assert runs == 8 * 3 * 3 and text.count("\nend\n") + text.startswith("end") == runs
+    context = BenchContext(fmu_dir=fmu_dir, quick=True)
+    rows = {r.label: r for r in worst_update(context)}
+    assert 0.0 < rows["longest update"].value and rows["mean update"].value > 0.0
+    assert "72 runs" in context.notes[0] and "43200 updates" in context.notes[0]
+    context.notes.clear()
+    rows = {r.label: r for r in native_closed_loop(context)}
+    assert rows["closed-loop step, both native FMUs"].value > 0.0
+    assert any(label.startswith("goal: ratio at most") for label in rows)

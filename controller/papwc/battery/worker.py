@@ -92,6 +92,7 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         Exceptions are caught and recorded, never raised.
     """
     from papwc.interrupts import RunTimeout
+    from papwc.master.native_controller import fmu_controller_library
     from papwc.master.native_plant import plant_library
     from papwc.results.pulses import pulse_ratio
     from papwc.results.summary import summarize
@@ -106,7 +107,8 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
     try:
         scenario = parse_scenario(task["data"], f"{task['source']} run {task['run_id']}")
         results = run_scenario(scenario, "fmu", fmu_path, unzip_dir=unzip_dir,
-                               timeout=task.get("timeout"))
+                               timeout=task.get("timeout"),
+                               library=fmu_controller_library(task.get("controller_fmu")))
         for result in results:
             settings = result.settings
             iterations = []

@@ -4,9 +4,9 @@ A section is a function ``f(context) -> list[Row]`` registered with
 :func:`register_section`; :func:`run_sections` calls every registered section
 in order and prints its rows as a small table. The sections are in
 :mod:`.plant_calls`, :mod:`.rodas_products`, :mod:`.native_step`, :mod:`.master_step`,
-:mod:`.battery_throughput`, :mod:`.realism_time`, :mod:`.cosim_memory` and
-:mod:`.identify_time`; add one by writing such a function in a module imported by
-:func:`load_sections` and decorating it::
+:mod:`.native_controller`, :mod:`.battery_throughput`, :mod:`.realism_time`,
+:mod:`.cosim_memory` and :mod:`.identify_time`; add one by writing such a function in a
+module imported by :func:`load_sections` and decorating it::
 
     @register_section("closed loop")
     def closed_loop(context: BenchContext) -> list[Row]:
@@ -190,7 +190,8 @@ def median_interleaved(
 
 #: Modules that register sections, in the order their sections run.
 SECTION_MODULES = ("plant_calls", "rodas_products", "native_step", "master_step",
-                   "battery_throughput", "realism_time", "cosim_memory", "identify_time")
+                   "native_controller", "battery_throughput", "realism_time", "cosim_memory",
+                   "identify_time")
 
 
 def load_sections() -> list[Section]:

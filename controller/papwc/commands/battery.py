@@ -56,13 +56,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="start afresh even if DIR holds the journal of a battery")
     parser.add_argument("--quiet", action="store_true",
                         help="no progress bar and no report on stdout")
-    from papwc.commands.run import add_max_steps, positive_int
+    from papwc.commands.run import add_controllers_option, add_max_steps, positive_int
     from papwc.limits import MAX_RUNS
 
     parser.add_argument("--max-runs", type=positive_int, default=MAX_RUNS, metavar="N",
                         help="refuse batteries of more than N runs or grid points together "
                              f"(default {MAX_RUNS})")
     add_max_steps(parser)
+    add_controllers_option(parser)
 
 
 #: Largest ``--workers`` per core this process may run on.
@@ -95,12 +96,16 @@ def run(args: argparse.Namespace) -> int:
     if out is None:
         out = Path("results") / (batteries[0].name if len(batteries) == 1 else "battery")
     fmu = ensure_plant_fmu(args.fmu, out)
+    from papwc.scenario_run import ensure_controller_fmu
+
+    controller_fmu = ensure_controller_fmu(out) if args.controllers == "native" else None
     try:
         with _sigterm_as_interrupt():
             outcome = run_battery(batteries, out, fmu, workers=args.workers,
                                   scheduler=args.scheduler, resume=args.resume,
                                   overwrite=args.overwrite, progress=not args.quiet,
-                                  max_runs=args.max_runs, max_steps=args.max_steps)
+                                  max_runs=args.max_runs, max_steps=args.max_steps,
+                                  controller_fmu=controller_fmu)
     except BatteryInterrupted as stop:
         again = " ".join(shlex.quote(str(f)) for f in args.files)
         from papwc.limits import MAX_RUNS, MAX_STEPS
@@ -109,7 +114,8 @@ def run(args: argparse.Namespace) -> int:
         extra = "".join(f" {flag} {shlex.quote(str(value))}" for flag, value in (
             ("--fmu", args.fmu), ("--scheduler", args.scheduler), ("--workers", args.workers),
             ("--max-runs", args.max_runs if args.max_runs != MAX_RUNS else None),
-            ("--max-steps", args.max_steps if args.max_steps != MAX_STEPS else None))
+            ("--max-steps", args.max_steps if args.max_steps != MAX_STEPS else None),
+            ("--controllers", args.controllers if args.controllers != "native" else None))
             if value is not None) + (" --quiet" if args.quiet else "")
         what = "terminated (SIGTERM)" if _TERMINATED["by"] else "interrupted"
         print(f"papwc battery: {what}: {stop.done} of {stop.total} runs are in the "

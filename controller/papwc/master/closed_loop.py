@@ -187,9 +187,17 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
 
 
 def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuver,
-                   label: str = "", observers: Sequence[Observer] = ()) -> RunResult:
-    """Run a Python controller of ``settings`` against ``plant`` (see :func:`run_closed_loop`)."""
-    controller = ControllerSlave(make_controller(settings, maneuver.T))
+                   label: str = "", observers: Sequence[Observer] = (),
+                   library=None) -> RunResult:
+    """Run the controller of ``settings`` against ``plant`` (see :func:`run_closed_loop`): the
+    C controller of ``library`` (a :class:`papwc.master.native_controller.NativeControllerLibrary`)
+    for a kind it implements, else the Python controller; the same numbers either way."""
+    if library is None:
+        controller = ControllerSlave(make_controller(settings, maneuver.T))
+    else:
+        from papwc.master.native_controller import controller_slave
+
+        controller = controller_slave(settings, maneuver.T, library)
     return run_closed_loop(plant, controller, maneuver, settings, label, observers)
 
 

@@ -27,6 +27,7 @@ from ctypes import (
     c_void_p,
     cast,
 )
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -372,6 +373,23 @@ class FmuSlave:
                 if status > 1:
                     check("fmi2GetReal", status)
                 self.values = buf[:]
+        elif all(kind != "Boolean" for *_, kind in reads):
+            # Reals and Integers: each buffer read whole, then put in the watched order by one
+            # itemgetter (a controller's outputs: u and the estimates, the counts and codes)
+            order = [i for *_, positions, _ in reads for i in positions]
+            where = [0] * len(order)
+            for j, i in enumerate(order):
+                where[i] = j
+            arrange = itemgetter(*where) if len(where) > 1 else (lambda v: (v[0],))
+
+            def refresh() -> None:
+                read: list[Any] = []
+                for get, vr, n, buf, _, kind in reads:
+                    status = get(comp, vr, n, buf)
+                    if status > 1:
+                        check(f"fmi2Get{kind}", status)
+                    read += buf[:]
+                self.values = list(arrange(read))
         else:
             size = len(self._watched)
 

@@ -37,8 +37,13 @@ from papwc.model.controller_settings import (
     KIND_CODES,
 )
 
-__all__ = ["API_SYMBOL", "API_VERSION", "NativeControllerError", "NativeControllerLibrary",
-           "NativeControllerSlave", "PcOutputs", "PcSettings", "controller_library"]
+__all__ = ["API_SYMBOL", "API_VERSION", "CONTROLLER_BUILDS", "NativeControllerError",
+           "NativeControllerLibrary", "NativeControllerSlave", "PcOutputs", "PcSettings",
+           "controller_library", "controller_slave", "fmu_controller_library"]
+
+#: How the master runs a controller: ``"native"`` (the C controller of PulseController.fmu,
+#: for the kinds it implements; the Python controller for the others) or ``"python"``.
+CONTROLLER_BUILDS = ("native", "python")
 
 #: The exported function that returns the table of the controller's functions.
 API_SYMBOL = "papwc_controller_api"
@@ -219,6 +224,59 @@ def controller_library(unzip_dir: str | os.PathLike | None) -> NativeControllerL
         return None
     path = binary_path(unzip_dir)
     return None if path is None else _load(str(path))
+
+
+#: The C controller of each PulseController.fmu file of this process, by path: extracted once
+#: into a temporary folder removed at exit.
+_BY_FMU: dict[str, NativeControllerLibrary | None] = {}
+
+
+def fmu_controller_library(fmu: str | os.PathLike | None) -> NativeControllerLibrary | None:
+    """The C controller of the PulseController.fmu at ``fmu``, or None where it gives none
+    (no file, no binary for this platform, another layout). The FMU is extracted once per
+    process."""
+    if fmu is None:
+        return None
+    key = str(fmu)
+    if key not in _BY_FMU:
+        if not Path(fmu).is_file():
+            return None
+        import atexit
+        import shutil
+        import tempfile
+
+        from fmpy import extract
+
+        folder = tempfile.mkdtemp(prefix="papwc_controller_")
+        atexit.register(shutil.rmtree, folder, True)
+        try:
+            extract(str(fmu), unzipdir=folder)
+        except Exception:  # noqa: BLE001 - not an archive: the Python controller runs instead
+            _BY_FMU[key] = None
+        else:
+            _BY_FMU[key] = controller_library(folder)
+    return _BY_FMU[key]
+
+
+def controller_slave(settings: ControllerSettings, T: float,
+                     library: NativeControllerLibrary | None = None,
+                     name: str = "controller"):
+    """The master's controller slave of ``settings`` at period ``T`` (s): the C controller of
+    ``library`` for a kind it implements, else the Python controller
+    (:class:`papwc.master.slave.ControllerSlave`). Both give the same numbers."""
+    from papwc.controllers import make_controller
+    from papwc.master.slave import ControllerSlave
+
+    if library is not None and settings.kind in _native_kinds():
+        return NativeControllerSlave(library, settings, T, name)
+    return ControllerSlave(make_controller(settings, T), name)
+
+
+def _native_kinds() -> tuple[str, ...]:
+    """The kinds of the C controller (its header's PC_KINDS, from the model layer)."""
+    from papwc.fmubuild.native_tables import NATIVE_KINDS
+
+    return NATIVE_KINDS
 
 
 class NativeControllerSlave(_WatchedAttributes):
