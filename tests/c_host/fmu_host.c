@@ -2,7 +2,8 @@
  *
  *   fmu_host BINARY GUID T [r|i|b:VR=VALUE ...] -- OUT_VR[r|i] ...   < readings
  *
- * loads the FMU's binary (dlopen), instantiates it, sets the parameters given (Real, Integer
+ * loads the FMU's binary (dlopen), instantiates it (its resources: the folder resources/ of
+ * the extracted FMU BINARY lies in, as a file:// URI), sets the parameters given (Real, Integer
  * or Boolean, by value reference), initializes, then for each line "x_meas_vr x_meas
  * [more vr value pairs]" of stdin sets those inputs, calls fmi2DoStep(t, T) and prints the
  * outputs asked for (a Real as C's %a: its exact bits; an Integer as %d), one line per
@@ -47,7 +48,9 @@ int main(int argc, char **argv)
     double T;
     long k = 0;
     int i, first_out = argc;
-    char line[4096];
+    char line[4096], resources[4096];
+    char *cut;
+    int up;
     if (argc < 4) {
         fprintf(stderr, "usage: fmu_host BINARY GUID T [r|i|b:VR=VALUE ...] -- OUT ...\n");
         return 2;
@@ -71,8 +74,15 @@ int main(int argc, char **argv)
         LOOKUP(fmi2TerminateTYPE *, fmi2Terminate)
         LOOKUP(fmi2FreeInstanceTYPE *, fmi2FreeInstance)
         T = strtod(argv[3], NULL);
-        c = fmi2Instantiate("controller", fmi2CoSimulation, argv[2], "", &callbacks, fmi2False,
-                            fmi2True);
+        /* BINARY is <fmu>/binaries/<platform>/<file>: the resources are <fmu>/resources */
+        snprintf(resources, sizeof resources, "file://%s", argv[1]);
+        for (up = 0; up < 3; up++) {
+            cut = strrchr(resources, '/');
+            if (cut != NULL) *cut = '\0';
+        }
+        strncat(resources, "/resources", sizeof resources - strlen(resources) - 1);
+        c = fmi2Instantiate("controller", fmi2CoSimulation, argv[2], resources, &callbacks,
+                            fmi2False, fmi2True);
         if (c == NULL) {
             fprintf(stderr, "fmi2Instantiate gave no instance\n");
             return 3;

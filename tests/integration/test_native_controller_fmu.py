@@ -614,3 +614,67 @@ def test_the_bench_sections_measure_what_they_name(fmu_dir: Path) -> None:
     rows = {r.label: r for r in native_closed_loop(context)}
     assert rows["closed-loop step, both native FMUs"].value > 0.0
     assert any(label.startswith("goal: ratio at most") for label in rows)
+
+
+# --- the pythonfmu build in a host with no Python --------------------------------------------
+
+@pytest.fixture(scope="module")
+def c_host(tmp_path_factory) -> Path:
+    """tests/c_host/fmu_host.c compiled with the system cc."""
+    import fmpy
+
+    host = tmp_path_factory.mktemp("host") / "fmu_host"
+    done = subprocess.run([_cc(), "-std=c99", "-O2", "-Wall", "-I",
+                           str(Path(fmpy.__file__).parent / "c-code"), "-o", str(host),
+                           str(PROJECT_DIR / "tests" / "c_host" / "fmu_host.c"), "-ldl"],
+                          capture_output=True, text=True, check=False)
+    assert done.returncode == 0, done.stderr
+    return host
+
+
+def _python_fmu_run(c_host: Path, unzipped: Path, env: dict[str, str], steps: int = 5
+                    ) -> subprocess.CompletedProcess:
+    """PulseControllerPython.fmu's exact kind (kind_code 3) in the C host, x_ref 1 mm, the
+    reading 0 at every step; u and pulses per step."""
+    md = read_model_description(str(unzipped))
+    variables = {v.name: v.valueReference for v in md.modelVariables}
+    binary_path = unzipped / "binaries" / "linux64" / "PulseControllerPython.so"
+    return subprocess.run(
+        [str(c_host), str(binary_path), md.guid, repr(T), f"i:{variables['kind_code']}=3",
+         f"r:{variables['x_ref_offset']}=0.001", "--", f"{variables['u']}r",
+         f"{variables['pulses']}i"], input=f"{variables['x_meas']} 0.0\n" * steps,
+        capture_output=True, text=True, timeout=120, env=env, check=False)
+
+
+def test_the_pythonfmu_build_refuses_in_one_line_where_the_host_has_no_python(
+        c_host: Path, pulse_controller_python_unzipped: Path) -> None:
+    """A C host started with an empty environment: fmi2Instantiate returns NULL, one line
+    on stderr names what is missing and the native FMU; the host ends normally (no crash)."""
+    done = _python_fmu_run(c_host, pulse_controller_python_unzipped, {"PATH": "/usr/bin:/bin"})
+    lines = [line for line in done.stderr.splitlines()
+             if line.startswith("PulseControllerPython controller: fmi2Instantiate refused")]
+    assert done.returncode == 3, (done.returncode, done.stderr)  # the host's "no instance"
+    assert len(lines) == 1, done.stderr
+    assert "this process has no Python loaded" in lines[0]
+    assert "the native PulseController.fmu" in lines[0] and "LD_PRELOAD" in lines[0]
+    report("pythonfmu build, C host with no Python", lines[0][:120] + " ...")
+
+
+def test_the_pythonfmu_build_runs_in_a_c_host_with_libpython_preloaded(
+        c_host: Path, pulse_controller_python_unzipped: Path) -> None:
+    """The same host with LD_PRELOAD=libpython (``papwc hostenv``) and PATH=/usr/bin:/bin
+    (whose python3 is not this interpreter: the loader gives Python its own home): the exact
+    controller's forces, as the Python controller gives them."""
+    from papwc.host_environment import libpython
+
+    done = _python_fmu_run(c_host, pulse_controller_python_unzipped,
+                           {"PATH": "/usr/bin:/bin", "LD_PRELOAD": str(libpython())})
+    assert done.returncode == 0, done.stderr
+    python = make_controller(ControllerSettings(kind="exact"), T)
+    expected = []
+    for k in range(5):
+        u = python.update(k * T, 0.0, 0.001)
+        expected.append([u, python.outputs()["pulses"]])
+    got = [[float.fromhex(a), int(b)] for a, b in (line.split() for line in
+                                                    done.stdout.splitlines())]
+    assert got == expected and got[0][0] != 0.0

@@ -88,6 +88,9 @@ class FmuRecipe:
         Its folder in ``fmu_src/`` where that is not ``name``.
     sections : tuple of str
         The readme's sections copied into a native FMU's ``index.html``.
+    loader : bool
+        A pythonfmu FMU whose binary refuses in one line where the host has no Python
+        (:func:`papwc.fmubuild.pythonfmu_build.add_loader`).
     """
 
     name: str
@@ -99,6 +102,7 @@ class FmuRecipe:
     python: bool = True
     folder_name: str = ""
     sections: tuple[str, ...] = ("Equations",)
+    loader: bool = False
 
     @property
     def folder(self) -> Path:
@@ -124,7 +128,7 @@ class FmuRecipe:
     def source(self) -> FmuSource:
         """What the FMU is built from, with the paths of this installation."""
         return FmuSource(self.script, self.variables, self.package, self.bundle,
-                         self.documentation, options=self.options)
+                         self.documentation, options=self.options, loader=self.loader)
 
     def native_source(self):
         """What the native FMU is built from (:class:`.native_build.NativeSource`)."""
@@ -179,6 +183,7 @@ FMUS: tuple[FmuRecipe, ...] = (
         ("model", "controllers", "fmi"),
         {**STATE_OPTIONS, "canHandleVariableCommunicationStepSize": False},
         folder_name="PulseController",
+        loader=True,
     ),
     FmuRecipe(
         "PapwcTrivial",

@@ -292,12 +292,14 @@ def fat_macho(thin: Sequence[bytes]) -> bytes:
     return head + b"\0" * (offset - len(head)) + body
 
 
-def compile_binaries(tree: Path, name: str) -> list[Path]:
+def compile_binaries(tree: Path, name: str,
+                     more: dict[str, tuple[str, ...]] | None = None) -> list[Path]:
     """Compile ``tree/sources/*.c`` for every platform of :data:`TARGETS` into
-    ``tree/binaries/<platform>/``."""
+    ``tree/binaries/<platform>/`` (``more``: further flags by platform folder)."""
     binaries = tree / "binaries"
     written = []
     for folder, (targets, suffix, extra) in TARGETS.items():
+        extra = (*extra, *(more or {}).get(folder, ()))
         (binaries / folder).mkdir(parents=True, exist_ok=True)
         out = binaries / folder / f"{name}{suffix}"
         if suffix == ".dylib":  # the install name is the file's, not the build folder's
