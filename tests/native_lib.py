@@ -11,14 +11,12 @@ a shared library with the flags that keep IEEE double arithmetic as Python does 
 from __future__ import annotations
 
 import ctypes
-import importlib.util
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
+from papwc.fmubuild.native_build import host_compiler
 from papwc.fmubuild.native_tables import write_plant_header
 from papwc.model.plant import PLANT_OUTPUTS, PLANT_PARAMETERS
 
@@ -57,22 +55,17 @@ def compiler() -> list[str] | None:
     """The command of a C compiler on this machine, or None.
 
     ``PAPWC_TEST_CC`` (a command, split at spaces) chooses one, e.g.
-    ``"python -m ziglang cc -target x86_64-linux-gnu.2.17"``: the toolchain of the FMU.
+    ``"python -m ziglang cc -target x86_64-linux-gnu.2.17"``: the toolchain of the FMU;
+    else the system ``cc``, ``gcc`` or ``clang``, else zig's
+    (:func:`papwc.fmubuild.native_build.host_compiler`).
     """
-    chosen = os.environ.get("PAPWC_TEST_CC", "").split()
-    if chosen:
-        return chosen
-    for name in ("cc", "gcc", "clang"):
-        path = shutil.which(name)
-        if path:
-            return [path]
-    if importlib.util.find_spec("ziglang") is not None:
-        return [sys.executable, "-m", "ziglang", "cc"]
-    return None
+    return host_compiler("PAPWC_TEST_CC")
 
 
-def build_plant_library(folder: Path, command: list[str] | None = None) -> Path:
-    """Write plant_vars.h into ``folder`` and compile plant.c there; the library's path.
+def _build(folder: Path, write_header, sources: tuple[Path, ...], include: Path, name: str,
+           command: list[str] | None) -> Path:
+    """Write a generated header into ``folder`` (``write_header(folder)``) and compile
+    ``sources`` there into the shared library ``name``; its path.
 
     Raises
     ------
@@ -84,14 +77,20 @@ def build_plant_library(folder: Path, command: list[str] | None = None) -> Path:
         raise RuntimeError("no C compiler (cc, gcc, clang or the ziglang package)")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    write_plant_header(folder / "plant_vars.h")
-    library = folder / ("plant.dll" if sys.platform == "win32" else "libplant.so")
-    args = [*command, *CFLAGS, f"-I{folder}", f"-I{PLANT_INCLUDE}", "-o", str(library),
-            *map(str, PLANT_SOURCES), "-lm"]
+    write_header(folder)
+    library = folder / (f"{name}.dll" if sys.platform == "win32" else f"lib{name}.so")
+    args = [*command, *CFLAGS, f"-I{folder}", f"-I{include}", "-o", str(library),
+            *map(str, sources), "-lm"]
     done = subprocess.run(args, capture_output=True, text=True, check=False)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(args)} failed:\n{done.stdout}{done.stderr}")
     return library
+
+
+def build_plant_library(folder: Path, command: list[str] | None = None) -> Path:
+    """Write plant_vars.h into ``folder`` and compile plant.c there; the library's path."""
+    return _build(folder, lambda f: write_plant_header(Path(f) / "plant_vars.h"), PLANT_SOURCES,
+                  PLANT_INCLUDE, "plant", command)
 
 
 class NativeLibrary:
@@ -187,28 +186,11 @@ CONTROLLER_SOURCES = (CONTROLLER_DIR / "controller.c", CONTROLLER_DIR / "control
 
 def build_controller_library(folder: Path, command: list[str] | None = None) -> Path:
     """Write controller_vars.h into ``folder`` and compile controller.c and controller_api.c
-    there (the flags of the plant); the library's path.
-
-    Raises
-    ------
-    RuntimeError
-        If no compiler is found or the compilation fails (its output in the message).
-    """
+    there (the flags of the plant); the library's path."""
     from papwc.fmubuild.native_tables import write_controller_header
 
-    command = command or compiler()
-    if command is None:
-        raise RuntimeError("no C compiler (cc, gcc, clang or the ziglang package)")
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
-    write_controller_header(folder)
-    library = folder / ("controller.dll" if sys.platform == "win32" else "libcontroller.so")
-    args = [*command, *CFLAGS, f"-I{folder}", f"-I{CONTROLLER_DIR}", "-o", str(library),
-            *map(str, CONTROLLER_SOURCES), "-lm"]
-    done = subprocess.run(args, capture_output=True, text=True, check=False)
-    if done.returncode != 0:
-        raise RuntimeError(f"{' '.join(args)} failed:\n{done.stdout}{done.stderr}")
-    return library
+    return _build(folder, write_controller_header, CONTROLLER_SOURCES, CONTROLLER_DIR,
+                  "controller", command)
 
 
 _D, _I32, _I64 = ctypes.c_double, ctypes.c_int32, ctypes.c_int64

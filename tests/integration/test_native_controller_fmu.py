@@ -454,12 +454,7 @@ def _with_sink(ssp: Path, target: Path, scale: float) -> Path:
 @pytest.mark.skipif(not Path("/proc/self/statm").is_file(), reason="needs /proc (Linux)")
 def test_ten_thousand_instances_do_not_grow_the_memory(pulse_controller_unzipped: Path) -> None:
     md = read_model_description(str(pulse_controller_unzipped))
-    library = ctypes.CDLL(str(pulse_controller_unzipped / "binaries" / "linux64" /
-                              "PulseController.so"))
-    library.fmi2Instantiate.restype = ctypes.c_void_p
-    library.fmi2Instantiate.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
-                                        ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int,
-                                        ctypes.c_int]
+    library = plant_tests.fmi_library(pulse_controller_unzipped)
     guid = md.guid.encode()
     variables = {v.name: v.valueReference for v in md.modelVariables}
     vr = (ctypes.c_uint * 2)(variables["x_ref_offset"], variables["x_meas"])
@@ -483,12 +478,7 @@ def test_ten_thousand_instances_do_not_grow_the_memory(pulse_controller_unzipped
         assert library.fmi2Terminate(c) == FMI2_OK
         library.fmi2FreeInstance(c)
 
-    for _ in range(500):  # the allocator's pools settle
-        cycle()
-    before = plant_tests._rss()
-    for _ in range(10_000):
-        cycle()
-    grown = plant_tests._rss() - before
+    grown = plant_tests.rss_growth(cycle)
     report("RSS growth over 10,000 instantiate/initialize/step/state/free cycles (bytes)",
            grown)
     assert grown < 1 << 20

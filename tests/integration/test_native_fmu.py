@@ -522,16 +522,34 @@ def _rss() -> int:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-@pytest.mark.slow
-@pytest.mark.skipif(not Path("/proc/self/statm").is_file(), reason="needs /proc (Linux)")
-def test_ten_thousand_instances_do_not_grow_the_memory(friction_plant_unzipped: Path) -> None:
-    md = read_model_description(str(friction_plant_unzipped))
-    library = ctypes.CDLL(str(friction_plant_unzipped / "binaries" / "linux64" /
-                              "FrictionPlant.so"))
+def fmi_library(unzipped: Path) -> ctypes.CDLL:
+    """The linux64 binary of an extracted FMU, fmi2Instantiate typed."""
+    md = read_model_description(str(unzipped))
+    library = ctypes.CDLL(str(unzipped / "binaries" / "linux64" /
+                              f"{md.coSimulation.modelIdentifier}.so"))
     library.fmi2Instantiate.restype = ctypes.c_void_p
     library.fmi2Instantiate.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
                                         ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int,
                                         ctypes.c_int]
+    return library
+
+
+def rss_growth(cycle, n: int = 10_000) -> int:
+    """Bytes the RSS grows by over ``n`` calls of ``cycle`` (after 500 that let the
+    allocator's pools settle)."""
+    for _ in range(500):
+        cycle()
+    before = _rss()
+    for _ in range(n):
+        cycle()
+    return _rss() - before
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/statm").is_file(), reason="needs /proc (Linux)")
+def test_ten_thousand_instances_do_not_grow_the_memory(friction_plant_unzipped: Path) -> None:
+    md = read_model_description(str(friction_plant_unzipped))
+    library = fmi_library(friction_plant_unzipped)
     for name in ("fmi2SetupExperiment", "fmi2EnterInitializationMode",
                  "fmi2ExitInitializationMode", "fmi2DoStep", "fmi2Terminate",
                  "fmi2FreeInstance", "fmi2SetReal", "fmi2GetFMUstate", "fmi2FreeFMUstate"):
@@ -555,12 +573,7 @@ def test_ten_thousand_instances_do_not_grow_the_memory(friction_plant_unzipped: 
         assert library.fmi2Terminate(c) == FMI2_OK
         library.fmi2FreeInstance(c)
 
-    for _ in range(500):  # the allocator's pools settle
-        cycle()
-    before = _rss()
-    for _ in range(10_000):
-        cycle()
-    grown = _rss() - before
+    grown = rss_growth(cycle)
     report("RSS growth over 10,000 instantiate/initialize/step/state/free cycles (bytes)",
            grown)
     assert grown < 1 << 20

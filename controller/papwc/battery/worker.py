@@ -98,7 +98,7 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
     from papwc.results.summary import summarize
     from papwc.scenario_run import run_scenario
 
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     record = {"type": "run", "battery": task["battery"], "run_id": task["run_id"],
               "run_hash": task["run_hash"], "params": task["data"], "status": "ok",
               "message": "", "controllers": []}
@@ -139,6 +139,7 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         record["status"] = "error"
         record["message"] = f"{type(exc).__name__}: {exc}"
     record["elapsed_s"] = time.perf_counter() - start
+    record["cpu_s"] = time.process_time() - cpu_start  # (journal only: papwc bench reads it)
     return record
 
 

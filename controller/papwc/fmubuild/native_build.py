@@ -68,6 +68,7 @@ __all__ = [
     "config_header",
     "fat_macho",
     "fmi_headers_dir",
+    "host_compiler",
     "zig_command",
 ]
 
@@ -113,6 +114,24 @@ def zig_command() -> list[str]:
         raise BuildError("the native FMUs are compiled with zig; install it: pip install "
                          f"ziglang ({exc})") from exc
     return [sys.executable, "-m", "ziglang", "cc"]
+
+
+def host_compiler(variable: str = "PAPWC_CC") -> list[str] | None:
+    """A C compiler for this machine (not a cross-compiler): the environment variable
+    ``variable`` (a command, split at spaces), else the system ``cc``, ``gcc`` or ``clang``,
+    else zig's (pip ``ziglang``); None if there is none."""
+    import importlib.util
+
+    chosen = os.environ.get(variable, "").split()
+    if chosen:
+        return chosen
+    for name in ("cc", "gcc", "clang"):
+        path = shutil.which(name)
+        if path:
+            return [path]
+    if importlib.util.find_spec("ziglang") is not None:
+        return [sys.executable, "-m", "ziglang", "cc"]
+    return None
 
 
 def zig_version() -> str:
@@ -465,7 +484,8 @@ font-size:90%}}</style></head>
 <h1>{e(source.name)}</h1>
 <p>{e(source.description)}</p>
 <p>FMI 2.0 Co-Simulation, compiled from C (the sources are in <code>sources/</code>) for
-win64, linux64 (glibc 2.17 or newer) and darwin64 (x86_64 and arm64). No Python is needed
+win64, linux64 (glibc 2.17 or newer) and darwin64 (x86_64: macOS 10.13 or newer; arm64:
+macOS 11 or newer). No Python is needed
 to run it. Every refused call returns fmi2Error (fmi2Discard for a step with a non-finite
 input or a step size that is not &gt; 0) and logs why when logging is on.</p>
 {readme_sections(source)}

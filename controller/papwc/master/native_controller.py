@@ -22,14 +22,13 @@ from __future__ import annotations
 import ctypes
 import functools
 import os
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
 from papwc.controllers.settings import ControllerSettings
-from papwc.errors import FmuError
-from papwc.master.native_plant import binary_path, layout_struct
-from papwc.master.slave import CONTROLLER_SLAVE_VARIABLES, _WatchedAttributes
+from papwc.master.native_plant import api_table, binary_path, layout_struct
+from papwc.master.slave import CONTROLLER_SLAVE_VARIABLES, ControllerInputs
 from papwc.model.controller_settings import (
     CONTROLLER_OUTPUTS,
     CONTROLLER_SETTINGS,
@@ -144,29 +143,9 @@ class NativeControllerLibrary:
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = Path(path)
-        try:
-            lib = ctypes.CDLL(str(self.path))
-        except OSError as exc:
-            raise NativeControllerError(f"{self.path}: cannot be loaded: {exc}") from exc
-        try:
-            get_api = getattr(lib, API_SYMBOL)
-        except AttributeError as exc:
-            raise NativeControllerError(f"{self.path}: exports no {API_SYMBOL}") from exc
-        get_api.argtypes = []
-        get_api.restype = ctypes.POINTER(_Api)
-        api = get_api().contents
-        if api.version != API_VERSION:
-            raise NativeControllerError(f"{self.path}: {API_SYMBOL} version {api.version}, "
-                                        f"this papwc reads version {API_VERSION}")
-        for what, cls, size, layout in (("PcSettings", PcSettings, api.settings_size,
-                                         api.settings),
-                                        ("PcOutputs", PcOutputs, api.outputs_size, api.outputs)):
-            text = (layout or b"").decode("ascii", "replace")
-            if size != ctypes.sizeof(cls) or text != cls.layout:
-                raise NativeControllerError(
-                    f"{self.path}: its {what} ({size} bytes: {text.strip()}) is not the model "
-                    f"layer's ({ctypes.sizeof(cls)} bytes: {cls.layout.strip()}); rebuild the "
-                    "FMU (papwc build)")
+        lib, api = api_table(self.path, API_SYMBOL, API_VERSION, _Api, NativeControllerError, (
+            ("PcSettings", PcSettings, "settings_size", "settings"),
+            ("PcOutputs", PcOutputs, "outputs_size", "outputs")))
         self._lib = lib  # keeps the binary loaded while the table is used
         self.api = api
         self.controller_size = int(api.controller_size)
@@ -279,7 +258,7 @@ def _native_kinds() -> tuple[str, ...]:
     return NATIVE_KINDS
 
 
-class NativeControllerSlave(_WatchedAttributes):
+class NativeControllerSlave(ControllerInputs):
     """The C controller as a slave: the variables and behaviour of
     :class:`papwc.master.slave.ControllerSlave` around the Python controller of the same
     settings.
@@ -313,12 +292,7 @@ class NativeControllerSlave(_WatchedAttributes):
         self.y = PcOutputs()
         self._y = ctypes.byref(self.y)
         library.api.outputs_of(self._p, self._y)
-        self.x_meas = 0.0
-        self.x_ref = 0.0
-        self.x_d_meas = 0.0
-        self.u = 0.0
-        self._start: dict[str, float] = {}
-        self._init_watch()
+        self._init_inputs()
 
     def variables(self) -> Mapping[str, str]:
         """Causality of every variable."""
@@ -329,28 +303,6 @@ class NativeControllerSlave(_WatchedAttributes):
             return name
         return f"y.{name}"
 
-    def set_start_values(self, values: Mapping[str, Any]) -> None:
-        """Input start values, applied at every (re)initialization."""
-        for key in values:
-            if CONTROLLER_SLAVE_VARIABLES.get(key) != "input":
-                raise FmuError(f"{self.name}: {key!r} is not an input of the controller; "
-                               "its settings are given when it is made")
-        self._start.update(values)
-
-    def input_setter(self, names: Sequence[str]) -> Callable[..., None]:
-        """A function ``set(*values)`` that sets the inputs ``names``, in that order."""
-        for name in names:
-            if CONTROLLER_SLAVE_VARIABLES.get(name) != "input":
-                raise FmuError(f"{self.name}: {name!r} is not an input of the controller")
-        return self._attribute_setter(names)
-
-    def initialize(self, start_time: float = 0.0) -> None:
-        """Initialize with the start values; :attr:`values` then holds the initial values."""
-        for key, value in self._start.items():
-            setattr(self, key, value)
-        self.u = 0.0
-        self._refresh()
-
     def restart(self, start_time: float = 0.0) -> None:
         """A new maneuver from rest, keeping what the controller learned."""
         self.library.api.reset(self._p, self._y)
@@ -360,6 +312,3 @@ class NativeControllerSlave(_WatchedAttributes):
         """Sample at ``t`` (the step size is the controller's T) and refresh :attr:`values`."""
         self.u = self._sample(self._p, t, self.x_meas, self.x_ref, self._y)
         self.values = list(self._read(self))
-
-    def close(self) -> None:
-        """Nothing to release (the library stays loaded for the process)."""
