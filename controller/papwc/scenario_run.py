@@ -52,14 +52,33 @@ def ensure_controller_fmu(out: str | os.PathLike) -> Path:
     return current_fmu("PulseController", Path(out) / "fmu")
 
 
+def controller_fmu(controllers: str, out: str | os.PathLike) -> Path | None:
+    """The native PulseController.fmu whose C controller runs the kinds it implements, or
+    None for the Python controllers:
+
+    - ``"native"``: :func:`ensure_controller_fmu` (built into ``out/fmu/`` if needed);
+    - ``"auto"``: the checkout's build/PulseController.fmu where it is current (what
+      ``papwc build`` wrote), else None: nothing is built for it;
+    - ``"python"``: None.
+    """
+    if controllers == "native":
+        return ensure_controller_fmu(out)
+    if controllers == "auto":
+        from papwc.fmubuild.fmus import is_current
+        from papwc.resources import checkout_root
+
+        root = checkout_root()
+        built = None if root is None else root / "build" / "PulseController.fmu"
+        return built if built is not None and is_current(built, "PulseController") else None
+    return None
+
+
 def controller_library(controllers: str, out: str | os.PathLike):
-    """The C controller the master runs with ``controllers`` = ``"native"`` (that of
-    :func:`ensure_controller_fmu`), or None for ``"python"`` (the Python controllers)."""
-    if controllers == "python":
-        return None
+    """The C controller the master runs for ``controllers`` (:func:`controller_fmu`), or
+    None for the Python controllers."""
     from papwc.master.native_controller import fmu_controller_library
 
-    return fmu_controller_library(ensure_controller_fmu(out))
+    return fmu_controller_library(controller_fmu(controllers, out))
 
 
 def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,

@@ -668,3 +668,23 @@ def test_the_pythonfmu_build_runs_in_a_c_host_with_libpython_preloaded(
     got = [[float.fromhex(a), int(b)] for a, b in (line.split() for line in
                                                     done.stdout.splitlines())]
     assert got == expected and got[0][0] != 0.0
+
+
+def test_papwc_run_gives_the_same_files_with_either_controller_build(tmp_path: Path) -> None:
+    """papwc run --controllers native (the C controller, its FMU built into OUT/fmu) and
+    --controllers python: every CSV the same bytes."""
+    from harness import SHORT_PAPER
+
+    scenario = tmp_path / "short.toml"
+    scenario.write_text(SHORT_PAPER)
+    for build in ("native", "python"):
+        done = subprocess.run([sys.executable, "-m", "papwc.cli", "run", str(scenario), "--out",
+                               str(tmp_path / build), "--plant", "physics", "--controllers",
+                               build], capture_output=True, text=True, timeout=600, check=False)
+        assert done.returncode == 0, done.stderr
+    native = sorted(p.name for p in (tmp_path / "native").glob("*.csv"))
+    assert native == sorted(p.name for p in (tmp_path / "python").glob("*.csv"))
+    assert len(native) > 4 and (tmp_path / "native" / "fmu" / "PulseController.fmu").is_file()
+    for name in native:
+        assert (tmp_path / "native" / name).read_bytes() == \
+            (tmp_path / "python" / name).read_bytes(), name

@@ -277,16 +277,14 @@ def replay(pair: Pair, inputs: list[tuple[float, float, bool]]) -> list[tuple[st
     return out
 
 
-#: What the drawn runs of each kind go through (so that the comparison covers every part):
-#: the modes, outcomes and reasons, noise measured, idle samples counted, ringing seen, the
-#: force released. The pulse budget and PAPWC's creeps are reached by the realism runs, the
-#: PID's hunting by a test of its own.
+#: What the drawn runs of each kind go through at least (the comparison reaches every mode;
+#: the generation of examples is not the same on every machine, so only what dozens of them
+#: reach). What the realism runs and the named situations below reach, deterministically:
+#: settling, the pulse budget, no move that helps, noise measured, idle samples counted, the
+#: force released, PAPWC's creeps, ringing seen, the PID hunting.
 COVERAGE = {
-    "pwc": {("mode", 0), ("mode", 1), ("mode", 2), ("mode", 3), ("outcome", 1), ("outcome", 2),
-            ("reason", 1), ("reason", 2), ("reason", 6), ("noise", True), ("idle", True),
-            ("ringing", 1), ("released", 1)},
-    "pid": {("mode", 0), ("mode", 3), ("outcome", 1), ("outcome", 2), ("reason", 1),
-            ("reason", 6), ("noise", True), ("idle", True), ("released", 1)},
+    "pwc": {("mode", 0), ("mode", 1), ("mode", 2), ("mode", 3), ("outcome", 2), ("reason", 6)},
+    "pid": {("mode", 0), ("mode", 3), ("outcome", 2), ("reason", 6)},
 }
 COVERAGE["papwc"] = COVERAGE["pwc"]
 
@@ -363,8 +361,14 @@ def test_every_realism_case_is_the_python_controllers_bit_for_bit(
         pulses += pair.c.seq.pulses
         seen.setdefault(s.kind, set()).update(pair.seen)
     assert pulses > 100
-    assert {("reason", 3), ("noise", True)} <= seen["pwc"]
-    assert {("creep", True), ("reason", 1), ("idle", True)} <= seen["papwc"]
+    assert {("reason", 2), ("reason", 3), ("noise", True), ("released", 1)} <= seen["pwc"]
+    assert {("creep", True), ("reason", 1), ("reason", 2), ("idle", True), ("noise", True),
+            ("released", 1)} <= seen["papwc"]
+
+
+#: realism.toml's flexible drive (20 Hz while the table sticks), its mode not told (f_mode 0):
+#: the rest detection sees it ring.
+FLEXIBLE_UNTOLD = {"m": 100.0, "m_d": 50.0, "k_t": 7.896e5, "c_t": 251.3}
 
 
 @pytest.mark.parametrize(("values", "params", "x_ref", "T", "reached"), [
@@ -374,11 +378,16 @@ def test_every_realism_case_is_the_python_controllers_bit_for_bit(
      {("reason", 8)}),
     ({"kind": "pid", "tolerance": 2e-5}, {"noise_std": 2e-7, "x_resolution": 1e-7, "seed": 3},
      1e-3, 0.001, {("reason", 1), ("noise", True)}),
-], ids=["papwc_budget", "pid_hunting", "pid_noise"])
+    ({"kind": "papwc", "t_p_max": 0.03, "K_c": 0.8}, FLEXIBLE_UNTOLD, 1e-2, 0.01,
+     {("ringing", 1)}),
+    ({"kind": "pwc", "t_p_max": 0.03, "K_c": 0.8}, FLEXIBLE_UNTOLD, 1e-3, 0.01,
+     {("ringing", 1)}),
+], ids=["papwc_budget", "pid_hunting", "pid_noise", "papwc_ringing", "pwc_ringing"])
 def test_named_situations_are_the_python_controllers_bit_for_bit(
         library: NativeControllerLibrary, plant_lib: NativeLibrary, values: dict[str, Any],
         params: dict[str, float], x_ref: float, T: float, reached: set) -> None:
-    """The PAPWC's pulse budget, the PID hunting, the PID on a noisy encoder at 1 kHz."""
+    """The PAPWC's pulse budget, the PID hunting, the PID on a noisy encoder at 1 kHz, PAPWC
+    and PWC on a drive that rings, its mode untold."""
     s = with_values(values)
     pair = Pair(library, s, T)
     plant = NativePlant(plant_lib, {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0,

@@ -96,9 +96,9 @@ def run(args: argparse.Namespace) -> int:
     if out is None:
         out = Path("results") / (batteries[0].name if len(batteries) == 1 else "battery")
     fmu = ensure_plant_fmu(args.fmu, out)
-    from papwc.scenario_run import ensure_controller_fmu
+    from papwc.scenario_run import controller_fmu as controllers_fmu
 
-    controller_fmu = ensure_controller_fmu(out) if args.controllers == "native" else None
+    controller_fmu = controllers_fmu(args.controllers, out)
     try:
         with _sigterm_as_interrupt():
             outcome = run_battery(batteries, out, fmu, workers=args.workers,
@@ -115,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
             ("--fmu", args.fmu), ("--scheduler", args.scheduler), ("--workers", args.workers),
             ("--max-runs", args.max_runs if args.max_runs != MAX_RUNS else None),
             ("--max-steps", args.max_steps if args.max_steps != MAX_STEPS else None),
-            ("--controllers", args.controllers if args.controllers != "native" else None))
+            ("--controllers", args.controllers if args.controllers != "auto" else None))
             if value is not None) + (" --quiet" if args.quiet else "")
         what = "terminated (SIGTERM)" if _TERMINATED["by"] else "interrupted"
         print(f"papwc battery: {what}: {stop.done} of {stop.total} runs are in the "

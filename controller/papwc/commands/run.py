@@ -39,11 +39,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def add_controllers_option(parser: argparse.ArgumentParser) -> None:
     """The option ``--controllers`` (shared with ``papwc battery``)."""
-    parser.add_argument("--controllers", choices=("native", "python"), default="native",
+    parser.add_argument("--controllers", choices=("auto", "native", "python"), default="auto",
                         help="run the kinds pwc, papwc and pid with the C controller of "
-                             "PulseController.fmu, built if needed (native, the default: "
-                             "faster) or all with the Python controllers (python); the same "
-                             "numbers either way. exact and dual_loop are Python")
+                             "PulseController.fmu (native: built into OUT/fmu if needed; "
+                             "auto, the default: where build/PulseController.fmu is current, "
+                             "after papwc build) or every kind with the Python controllers "
+                             "(python); the same numbers either way. exact and dual_loop are "
+                             "Python")
 
 
 def add_max_steps(parser: argparse.ArgumentParser) -> None:
