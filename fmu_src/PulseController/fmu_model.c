@@ -398,6 +398,20 @@ int model_step(void *data, double h, char *msg, size_t len)
     return 0;
 }
 
+/* Whether two settings hold the same values, field by field (not their padding bytes). */
+static int same_settings(const PcSettings *a, const PcSettings *b)
+{
+    if (a->kind != b->kind) return 0;
+#define X(name, vr, type, start, lo, hi, lo_open, hi_open, inf_ok, unit, words) \
+    if (!(a->name == b->name)) return 0;
+    PC_SETTINGS(X)
+#undef X
+#define X(name, vr, setting, optional, start, unit) if (a->name != b->name) return 0;
+    PC_SWITCHES(X)
+#undef X
+    return 1;
+}
+
 int model_state_check(const void *data, int started, char *msg, size_t len)
 {
     const ModelData *d = CDATA(data);
@@ -427,7 +441,7 @@ int model_state_check(const void *data, int started, char *msg, size_t len)
         snprintf(msg, len, "the controller state does not fit: %s", why);
         return 1;
     }
-    if (memcmp(&s, &d->c.settings, sizeof s) != 0 || d->c.cfg.T != d->T) {
+    if (!same_settings(&s, &d->c.settings) || d->c.cfg.T != d->T) {
         snprintf(msg, len, "the controller state does not fit: it was made from other "
                  "parameters than the state's");
         return 1;
