@@ -83,7 +83,8 @@ def paper_toml() -> Path:
 
 @pytest.fixture(scope="session")
 def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """Folder holding FrictionPlant.fmu, PulseController.fmu and PapwcTrivial.fmu.
+    """Folder holding FrictionPlant.fmu, PulseController.fmu, PulseControllerPython.fmu and
+    PapwcTrivial.fmu.
 
     Built once per session, all FMUs before any is loaded (see the module docstring).
     """
@@ -107,8 +108,14 @@ def pythonfmu_plant_fmu(fmu_dir: Path) -> Path:
 
 @pytest.fixture(scope="session")
 def pulse_controller_fmu(fmu_dir: Path) -> Path:
-    """Path of the built PulseController.fmu."""
+    """Path of the built PulseController.fmu (native: the C controller, pwc, papwc, pid)."""
     return fmu_dir / "PulseController.fmu"
+
+
+@pytest.fixture(scope="session")
+def pulse_controller_python_fmu(fmu_dir: Path) -> Path:
+    """Path of the built PulseControllerPython.fmu (pythonfmu: every controller kind)."""
+    return fmu_dir / "PulseControllerPython.fmu"
 
 
 @pytest.fixture(scope="session")
@@ -145,3 +152,11 @@ def pulse_controller_unzipped(
 ) -> Path:
     """PulseController.fmu extracted once."""
     return _extract(pulse_controller_fmu, tmp_path_factory, "controller")
+
+
+@pytest.fixture(scope="session")
+def pulse_controller_python_unzipped(
+    pulse_controller_python_fmu: Path, tmp_path_factory: pytest.TempPathFactory
+) -> Path:
+    """PulseControllerPython.fmu extracted once."""
+    return _extract(pulse_controller_python_fmu, tmp_path_factory, "pycontroller")

@@ -11,14 +11,12 @@ a shared library with the flags that keep IEEE double arithmetic as Python does 
 from __future__ import annotations
 
 import ctypes
-import importlib.util
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
 from typing import Any
 
+from papwc.fmubuild.native_build import host_compiler
 from papwc.fmubuild.native_tables import write_plant_header
 from papwc.model.plant import PLANT_OUTPUTS, PLANT_PARAMETERS
 
@@ -57,22 +55,17 @@ def compiler() -> list[str] | None:
     """The command of a C compiler on this machine, or None.
 
     ``PAPWC_TEST_CC`` (a command, split at spaces) chooses one, e.g.
-    ``"python -m ziglang cc -target x86_64-linux-gnu.2.17"``: the toolchain of the FMU.
+    ``"python -m ziglang cc -target x86_64-linux-gnu.2.17"``: the toolchain of the FMU;
+    else the system ``cc``, ``gcc`` or ``clang``, else zig's
+    (:func:`papwc.fmubuild.native_build.host_compiler`).
     """
-    chosen = os.environ.get("PAPWC_TEST_CC", "").split()
-    if chosen:
-        return chosen
-    for name in ("cc", "gcc", "clang"):
-        path = shutil.which(name)
-        if path:
-            return [path]
-    if importlib.util.find_spec("ziglang") is not None:
-        return [sys.executable, "-m", "ziglang", "cc"]
-    return None
+    return host_compiler("PAPWC_TEST_CC")
 
 
-def build_plant_library(folder: Path, command: list[str] | None = None) -> Path:
-    """Write plant_vars.h into ``folder`` and compile plant.c there; the library's path.
+def _build(folder: Path, write_header, sources: tuple[Path, ...], include: Path, name: str,
+           command: list[str] | None) -> Path:
+    """Write a generated header into ``folder`` (``write_header(folder)``) and compile
+    ``sources`` there into the shared library ``name``; its path.
 
     Raises
     ------
@@ -84,14 +77,20 @@ def build_plant_library(folder: Path, command: list[str] | None = None) -> Path:
         raise RuntimeError("no C compiler (cc, gcc, clang or the ziglang package)")
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    write_plant_header(folder / "plant_vars.h")
-    library = folder / ("plant.dll" if sys.platform == "win32" else "libplant.so")
-    args = [*command, *CFLAGS, f"-I{folder}", f"-I{PLANT_INCLUDE}", "-o", str(library),
-            *map(str, PLANT_SOURCES), "-lm"]
+    write_header(folder)
+    library = folder / (f"{name}.dll" if sys.platform == "win32" else f"lib{name}.so")
+    args = [*command, *CFLAGS, f"-I{folder}", f"-I{include}", "-o", str(library),
+            *map(str, sources), "-lm"]
     done = subprocess.run(args, capture_output=True, text=True, check=False)
     if done.returncode != 0:
         raise RuntimeError(f"{' '.join(args)} failed:\n{done.stdout}{done.stderr}")
     return library
+
+
+def build_plant_library(folder: Path, command: list[str] | None = None) -> Path:
+    """Write plant_vars.h into ``folder`` and compile plant.c there; the library's path."""
+    return _build(folder, lambda f: write_plant_header(Path(f) / "plant_vars.h"), PLANT_SOURCES,
+                  PLANT_INCLUDE, "plant", command)
 
 
 class NativeLibrary:
@@ -176,3 +175,112 @@ class NativePlant:
     def fields(self) -> dict[str, float | int]:
         """The state as :meth:`papwc.model.dynamics.Plant.state` gives it."""
         return {name: getattr(self.state, name) for name, _ in FpState._fields_}
+
+
+# --- the controller (fmu_src/PulseController/controller.c) ----------------------------------
+
+CONTROLLER_DIR = PROJECT_DIR / "fmu_src" / "PulseController"
+#: The library a drive links and the table papwc's master reads from it.
+CONTROLLER_SOURCES = (CONTROLLER_DIR / "controller.c", CONTROLLER_DIR / "controller_api.c")
+
+
+def build_controller_library(folder: Path, command: list[str] | None = None) -> Path:
+    """Write controller_vars.h into ``folder`` and compile controller.c and controller_api.c
+    there (the flags of the plant); the library's path."""
+    from papwc.fmubuild.native_tables import write_controller_header
+
+    return _build(folder, write_controller_header, CONTROLLER_SOURCES, CONTROLLER_DIR,
+                  "controller", command)
+
+
+_D, _I32, _I64 = ctypes.c_double, ctypes.c_int32, ctypes.c_int64
+
+
+def _fields(kind: Any, names: str) -> list[tuple[str, Any]]:
+    return [(name, kind) for name in names.split()]
+
+
+class PcConfig(ctypes.Structure):
+    """``PcConfig`` of papwc_controller.h."""
+
+    _fields_ = (_fields(_I32, "kind guarded flexible automatic regressor update_covariance "
+                              "floor_mode padding") + [("T", _D)]
+                + _fields(_I64, "n_max max_pulses mode_samples rest_samples hunt_max")
+                + _fields(_D, "rest_band tolerance e_band f_p_max f_c_est m_est m_d_est k_p k_d "
+                              "K_c floor_raise trust0 lambda_1 lambda_2 b_min b_max delta_inv lam "
+                              "a1_min a1_max a2_min a2_max pid_k_p pid_k_d pid_k_i a_max v_max"))
+
+
+class PcRest(ctypes.Structure):
+    """``PcRest`` of papwc_controller.h."""
+
+    _fields_ = ([("sigma2", _D), ("noise_rests", _I64)]
+                + _fields(_D, "anchor lo hi sum sum2") + _fields(_I64, "n look")
+                + [("ring", _D * 16), ("ring_n", _I64), ("dir", _D)]
+                + _fields(_I64, "turns ring_dwell") + [("x_turn", _D)]
+                + _fields(_I64, "legs since_force since_turn") + [("band", _D), ("dwell", _I64)])
+
+
+class PcTrust(ctypes.Structure):
+    """``PcTrust`` of papwc_controller.h."""
+
+    _fields_ = [("value", _D), ("ring", _I64), ("d_one", _D)]
+
+
+class PcSequencer(ctypes.Structure):
+    """``PcSequencer`` of papwc_controller.h."""
+
+    _fields_ = (_fields(_I64, "mode pulses first") + _fields(_D, "x_prev v_hat")
+                + [("pulse_left", _I64), ("f_pulse", _D), ("n_pulse", _I64), ("x_start", _D)]
+                + _fields(_I64, "waited last_n") + _fields(_D, "last_f last_d")
+                + _fields(_I64, "outcome outcome_reason stopped") + [("e0", _D)]
+                + [("released", _I64), ("pred", _D), ("refusal", _I64), ("stall_x", _D)]
+                + _fields(_I64, "stall_n idle_samples") + _fields(_D, "idle_x idle_ref"))
+
+
+class PcLaw(ctypes.Structure):
+    """``PcLaw`` of papwc_controller.h."""
+
+    _fields_ = (_fields(_D, "f_p_floor b_hat F_inv a1 a2 p11 p12 p22 f_p_plan t_p_plan")
+                + [("creeps", _D * 4), ("k", _I64)]
+                + _fields(_D, "integral x_from x_to x_ref_now side") + [("reversals", _I64)])
+
+
+def controller_struct() -> type[ctypes.Structure]:
+    """``PcController`` of papwc_controller.h (its settings as the master lays them out)."""
+    from papwc.master.native_controller import PcSettings
+
+    class PcController(ctypes.Structure):
+        _fields_ = [("magic", ctypes.c_uint32), ("size", ctypes.c_uint32),
+                    ("settings", PcSettings), ("cfg", PcConfig), ("rest", PcRest),
+                    ("trust", PcTrust), ("seq", PcSequencer), ("law", PcLaw)]
+
+    return PcController
+
+
+#: Names of the law's state (PulseControllerBase.law_state and the kinds') -> PcLaw field.
+LAW_FIELDS = {"f_p_floor": "f_p_floor", "b_hat": "b_hat", "F_inv": "F_inv",
+              "t_p_plan": "t_p_plan", "A1": "a1", "A2": "a2", "P11": "p11", "P12": "p12",
+              "P22": "p22", "f_p_plan": "f_p_plan", "creeps": "creeps", "k": "k",
+              "integral": "integral", "x_from": "x_from", "x_to": "x_to",
+              "x_ref_now": "x_ref_now", "side": "side", "reversals": "reversals"}
+
+
+def controller_state(c: ctypes.Structure, names: list[str]) -> dict[str, Any]:
+    """The C controller ``c``'s state under the names of the Python controller's ``state()``
+    (``sequencer.mode``, ``rest.ring``, ``law.A1``, ...): the idle samples counted in as
+    ``state()`` counts them (PulseSequencer.catch_up)."""
+    rest = PcRest.from_buffer_copy(c.rest)
+    k = c.seq.idle_samples
+    if k:
+        rest.n += k
+        for i in range(min(k, 16)):
+            rest.ring[(rest.ring_n + i) % 16] = c.seq.idle_x
+        rest.ring_n += k
+    parts = {"sequencer": c.seq, "rest": rest, "trust": c.trust, "law": c.law}
+    out: dict[str, Any] = {}
+    for key in names:
+        part, name = key.split(".", 1)
+        value = getattr(parts[part], LAW_FIELDS[name] if part == "law" else name)
+        out[key] = list(value) if isinstance(value, ctypes.Array) else value
+    return out

@@ -42,6 +42,45 @@ def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> P
 
 
 
+def ensure_controller_fmu(out: str | os.PathLike) -> Path:
+    """The native PulseController.fmu built from the current sources: the checkout's
+    build/PulseController.fmu when it is current, else ``out/fmu/PulseController.fmu`` (built
+    there if missing or stale)."""
+    from papwc.fmubuild.fmus import current_fmu
+
+    refuse_link(Path(out) / "fmu")
+    return current_fmu("PulseController", Path(out) / "fmu")
+
+
+def controller_fmu(controllers: str, out: str | os.PathLike) -> Path | None:
+    """The native PulseController.fmu whose C controller runs the kinds it implements, or
+    None for the Python controllers:
+
+    - ``"native"``: :func:`ensure_controller_fmu` (built into ``out/fmu/`` if needed);
+    - ``"auto"``: the checkout's build/PulseController.fmu where it is current (what
+      ``papwc build`` wrote), else None: nothing is built for it;
+    - ``"python"``: None.
+    """
+    if controllers == "native":
+        return ensure_controller_fmu(out)
+    if controllers == "auto":
+        from papwc.fmubuild.fmus import is_current
+        from papwc.resources import checkout_root
+
+        root = checkout_root()
+        built = None if root is None else root / "build" / "PulseController.fmu"
+        return built if built is not None and is_current(built, "PulseController") else None
+    return None
+
+
+def controller_library(controllers: str, out: str | os.PathLike):
+    """The C controller the master runs for ``controllers`` (:func:`controller_fmu`), or
+    None for the Python controllers."""
+    from papwc.master.native_controller import fmu_controller_library
+
+    return fmu_controller_library(controller_fmu(controllers, out))
+
+
 def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
                unzip_dir: str | os.PathLike | None = None) -> Slave:
     """A plant with the scenario's parameters: ``"fmu"`` (an FMU file) or ``"physics"``.
@@ -80,7 +119,7 @@ def release_plant(slave: Slave, fmu: str | os.PathLike | None,
 def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
                  progress: Callable[[RunResult], None] | None = None,
                  unzip_dir: str | os.PathLike | None = None,
-                 timeout: float | None = None) -> list[RunResult]:
+                 timeout: float | None = None, library=None) -> list[RunResult]:
     """Run every controller of the scenario (each with a fresh plant instance).
 
     ``fmu`` is the plant FMU's path when ``plant`` is ``"fmu"`` (and
@@ -88,6 +127,8 @@ def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike 
     called with each controller's result as it finishes. With ``timeout`` (s),
     :class:`RunTimeout` is raised once the whole run has taken longer. Ctrl-C
     raises KeyboardInterrupt between two steps (:func:`deferred_interrupt`).
+    ``library`` (:func:`controller_library`): the C controller runs the kinds it
+    implements, the Python controllers the others (None: all Python); the same numbers.
     """
     results = []
     deadline = None if timeout is None else time.monotonic() + timeout
@@ -97,7 +138,7 @@ def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike 
             guard = StepGuard(deadline, timeout)
             try:
                 results.append(run_controller(slave, settings, scenario.maneuver, label,
-                                              observers=[guard]))
+                                              observers=[guard], library=library))
             finally:
                 release_plant(slave, fmu, unzip_dir)
             if progress is not None:

@@ -156,6 +156,19 @@ void model_set_boolean(void *data, fmi2ValueReference vr, int value) {
     }
 }
 
+/* FrictionPlant has no String variable (model_variable never names one). */
+const char *model_get_string(const void *data, fmi2ValueReference vr) {
+    (void)data;
+    (void)vr;
+    return "";
+}
+
+void model_set_string(void *data, fmi2ValueReference vr, const char *value) {
+    (void)data;
+    (void)vr;
+    (void)value;
+}
+
 /* "<unit suffix>" and "<what is allowed>" of parameter vr (fmu_config.h). */
 static void parameter_words(fmi2ValueReference vr, const char **unit, const char **allowed) {
     *unit = "";

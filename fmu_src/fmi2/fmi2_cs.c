@@ -365,6 +365,7 @@ static const char *type_name(ModelType type) {
         case MODEL_REAL: return "Real";
         case MODEL_INTEGER: return "Integer";
         case MODEL_BOOLEAN: return "Boolean";
+        case MODEL_STRING: return "String";
     }
     return "?";
 }
@@ -425,26 +426,23 @@ GET_VALUES(fmi2GetReal, fmi2Real, MODEL_REAL, model_get_real)
 GET_VALUES(fmi2GetInteger, fmi2Integer, MODEL_INTEGER, model_get_integer)
 GET_VALUES(fmi2GetBoolean, fmi2Boolean, MODEL_BOOLEAN, get_boolean)
 
-fmi2Status fmi2GetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                         fmi2String value[]) {
-    INSTANCE_OR_ERROR(c);
-    (void)value;
-    if (nvr == 0) return fmi2OK;
-    return refuse(inst, fmi2Error, "fmi2GetString refused: " MODEL_IDENTIFIER_STRING
-                  " has no String variable (value reference %u)",
-                  vr != NULL ? (unsigned)vr[0] : 0u);
-}
+GET_VALUES(fmi2GetString, fmi2String, MODEL_STRING, model_get_string)
 
 /* Text of a value of a set call, for messages. */
 static void value_text(ModelType type, const void *values, size_t i, char *out, size_t len) {
-    if (type == MODEL_REAL) fmu_format_real(((const fmi2Real *)values)[i], out, len);
+    const char *text;
+    if (type == MODEL_STRING) {
+        text = ((const fmi2String *)values)[i];
+        snprintf(out, len, "'%.32s'", text != NULL ? text : "(NULL)");
+    } else if (type == MODEL_REAL) fmu_format_real(((const fmi2Real *)values)[i], out, len);
     else if (type == MODEL_INTEGER) snprintf(out, len, "%d", (int)((const fmi2Integer *)values)[i]);
     else snprintf(out, len, "%s", ((const fmi2Boolean *)values)[i] ? "true" : "false");
 }
 
 static void current_text(const Instance *inst, ModelType type, fmi2ValueReference vr,
                          char *out, size_t len) {
-    if (type == MODEL_REAL) fmu_format_real(model_get_real(inst->model, vr), out, len);
+    if (type == MODEL_STRING) snprintf(out, len, "'%.32s'", model_get_string(inst->model, vr));
+    else if (type == MODEL_REAL) fmu_format_real(model_get_real(inst->model, vr), out, len);
     else if (type == MODEL_INTEGER) snprintf(out, len, "%d", model_get_integer(inst->model, vr));
     else snprintf(out, len, "%s", model_get_boolean(inst->model, vr) ? "true" : "false");
 }
@@ -507,15 +505,12 @@ SET_VALUES(fmi2SetReal, fmi2Real, MODEL_REAL, model_set_real)
 SET_VALUES(fmi2SetInteger, fmi2Integer, MODEL_INTEGER, model_set_integer)
 SET_VALUES(fmi2SetBoolean, fmi2Boolean, MODEL_BOOLEAN, set_boolean)
 
-fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t nvr,
-                         const fmi2String value[]) {
-    INSTANCE_OR_ERROR(c);
-    (void)value;
-    if (nvr == 0) return fmi2OK;
-    return refuse(inst, fmi2Error, "fmi2SetString refused: " MODEL_IDENTIFIER_STRING
-                  " has no String variable (value reference %u)",
-                  vr != NULL ? (unsigned)vr[0] : 0u);
+/* A String given to fmi2SetString, NULL read as "". */
+static void set_string(void *model, fmi2ValueReference vr, fmi2String value) {
+    model_set_string(model, vr, value != NULL ? value : "");
 }
+
+SET_VALUES(fmi2SetString, fmi2String, MODEL_STRING, set_string)
 
 /* ---------------------------------------------------------------------------------------- */
 /* FMU states. */

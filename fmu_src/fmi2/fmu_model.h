@@ -18,7 +18,7 @@
 #include "fmu_config.h"
 
 /* Type of a variable. */
-typedef enum { MODEL_REAL = 0, MODEL_INTEGER = 1, MODEL_BOOLEAN = 2 } ModelType;
+typedef enum { MODEL_REAL = 0, MODEL_INTEGER = 1, MODEL_BOOLEAN = 2, MODEL_STRING = 3 } ModelType;
 
 /* Causality of a variable; MODEL_NO_VARIABLE for a value reference the model lacks. */
 typedef enum {
@@ -51,6 +51,13 @@ int model_get_boolean(const void *data, fmi2ValueReference vr);
 void model_set_real(void *data, fmi2ValueReference vr, double value);
 void model_set_integer(void *data, fmi2ValueReference vr, int value);
 void model_set_boolean(void *data, fmi2ValueReference vr, int value);
+
+/* A String variable (a model without one never names MODEL_STRING in model_variable, and
+ * these are not called): the value is kept in the model's data (copied, at most what the
+ * model holds; a longer one is kept so that model_check refuses it), read back as a
+ * string that lives until the next set. */
+const char *model_get_string(const void *data, fmi2ValueReference vr);
+void model_set_string(void *data, fmi2ValueReference vr, const char *value);
 
 /* Check the parameters: report each problem; return how many there are (0: valid). */
 int model_check(const void *data, ModelReport report, void *context);

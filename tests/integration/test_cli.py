@@ -174,7 +174,8 @@ def test_build_command_writes_the_fmus_and_the_ssp(tmp_path, capsys):
                           cwd=tmp_path, capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert done.stdout.splitlines() == [str(out / name) for name in (
-        "FrictionPlant.fmu", "PulseController.fmu", "PapwcTrivial.fmu", "ClosedLoop.ssp")]
-    for name in ("FrictionPlant", "PulseController", "PapwcTrivial"):
+        "FrictionPlant.fmu", "PulseController.fmu", "PulseControllerPython.fmu",
+        "PapwcTrivial.fmu", "ClosedLoop.ssp")]
+    for name in ("FrictionPlant", "PulseController", "PulseControllerPython", "PapwcTrivial"):
         assert is_current(out / f"{name}.fmu", name)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["build"]

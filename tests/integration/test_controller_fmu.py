@@ -1,5 +1,6 @@
-"""PulseController.fmu: model description, the same runs as the Python controller (bit for
-bit, through the master), refusals, state, and instances of both FMUs in one process.
+"""PulseController.fmu (native, C: pwc, papwc, pid) and PulseControllerPython.fmu (pythonfmu,
+every kind): model description, the same runs as the Python controller (bit for bit, through
+the master), refusals, state, and instances of both FMUs in one process.
 
 Closed loops are run by the master: ``FmuSlave(pulse_controller_fmu, name="controller",
 restart_input="maneuver")`` closed around the in-process plant or FrictionPlant.fmu by
@@ -28,6 +29,7 @@ from harness import (
 
 from papwc.controllers import CONTROLLER_KINDS, Mode, Outcome, Reason, make_controller
 from papwc.controllers.settings import ControllerSettings
+from papwc.fmubuild.native_tables import NATIVE_KINDS
 from papwc.master import (
     ControllerSlave,
     Execution,
@@ -62,6 +64,20 @@ VARIANTS = {"pwc": 0, "pwc_inf": 1, "papwc": 2, "papwc_inf": 3, "custom": CUSTOM
 @pytest.fixture(scope="module")
 def paper(paper_toml: Path) -> Scenario:
     return load_scenario(paper_toml)
+
+
+@pytest.fixture(scope="module")
+def builds(pulse_controller_fmu: Path, pulse_controller_python_fmu: Path,
+           pulse_controller_unzipped: Path, pulse_controller_python_unzipped: Path
+           ) -> dict[str, tuple[Path, Path]]:
+    """Each build of the controller: (the FMU, its extracted copy)."""
+    return {"native": (pulse_controller_fmu, pulse_controller_unzipped),
+            "python": (pulse_controller_python_fmu, pulse_controller_python_unzipped)}
+
+
+def build_of(kind: str) -> str:
+    """The build that runs ``kind``: the native one where it has the kind."""
+    return "native" if kind in NATIVE_KINDS else "python"
 
 
 def case(paper: Scenario, variant: str) -> tuple[ControllerSettings, Maneuver]:
@@ -106,10 +122,12 @@ def assert_same_runs(a: RunResult, b: RunResult) -> None:
 
 
 # -- model description ---------------------------------------------------------------------------
-def test_model_description(pulse_controller_fmu: Path) -> None:
+@pytest.mark.parametrize("build", ["native", "python"])
+def test_model_description(builds, build: str) -> None:
+    pulse_controller_fmu = builds[build][0]
     md = read_model_description(str(pulse_controller_fmu))
     cs = md.coSimulation
-    assert cs.modelIdentifier == "PulseController"
+    assert cs.modelIdentifier == pulse_controller_fmu.stem
     assert cs.canGetAndSetFMUstate and cs.canSerializeFMUstate
     assert not cs.canHandleVariableCommunicationStepSize
     variables = {v.name: v for v in md.modelVariables}
@@ -149,23 +167,31 @@ def test_model_description(pulse_controller_fmu: Path) -> None:
         assert float(variables[name].min) >= 0.0
     with zipfile.ZipFile(pulse_controller_fmu) as archive:
         names = archive.namelist()
-    assert "resources/papwc_pulse_controller/controllers/base.py" in names
-    assert "resources/PulseController.py" in names
     assert "documentation/readme.md" in names
-    assert not any(n.startswith("resources/papwc/") or "papwc_stickslip" in n for n in names)
-    assert not any("papwc_friction_plant" in n for n in names)
+    if build == "python":
+        assert "resources/papwc_pulse_controller/controllers/base.py" in names
+        assert "resources/PulseControllerPython.py" in names
+        assert not any(n.startswith("resources/papwc/") or "papwc_stickslip" in n
+                       for n in names)
+        assert not any("papwc_friction_plant" in n for n in names)
+    else:
+        assert {"sources/controller.c", "sources/papwc_controller.h",
+                "sources/controller_vars.h", "sources/fmu_model.c",
+                "sources/fmi2_cs.c"} <= set(names)
+        assert not any(n.startswith("resources/") for n in names)
 
 
 # -- the FMU runs as the Python controller, bit for bit -----------------------------------------
 @pytest.mark.parametrize("timing", ["immediate", "delayed"])
 @pytest.mark.parametrize("variant", list(VARIANTS))
 def test_fmu_controller_equals_the_python_controller_bit_for_bit(
-    pulse_controller_fmu: Path, pulse_controller_unzipped: Path, paper: Scenario, variant: str,
-    timing: str
+    builds, paper: Scenario, variant: str, timing: str
 ) -> None:
     """Three iterations (the FMU's ``maneuver`` input starts each, estimates kept), every
-    column of the trace equal to the Python controller's run."""
+    column of the trace equal to the Python controller's run: the native FMU for its kinds,
+    the pythonfmu one for exact."""
     settings, maneuver = case(paper, variant)
+    pulse_controller_fmu, pulse_controller_unzipped = builds[build_of(settings.kind)]
     # the FMU takes every setting as given (the kind a String, None as -1)
     probe = FmuInstance(pulse_controller_unzipped, "probe")
     try:
@@ -198,10 +224,12 @@ def test_fmu_controller_equals_the_python_controller_bit_for_bit(
 
 @pytest.mark.parametrize("timing", ["immediate", "delayed"])
 @pytest.mark.parametrize("T_pid", [0.01, 0.001])
-def test_fmu_pid_equals_the_python_pid_bit_for_bit(pulse_controller_fmu: Path, paper: Scenario,
-                                                   T_pid: float, timing: str) -> None:
-    """The PID kind (kind_code 4 selects it too) through PulseController.fmu: every column of
+@pytest.mark.parametrize("build", ["native", "python"])
+def test_fmu_pid_equals_the_python_pid_bit_for_bit(builds, paper: Scenario, T_pid: float,
+                                                   timing: str, build: str) -> None:
+    """The PID kind (kind_code 4 selects it too) through either build: every column of
     two iterations equal to the Python PID's run; it fires no pulses."""
+    pulse_controller_fmu = builds[build][0]
     settings = ControllerSettings(kind="pid", f_p_max=300.0, tolerance=1e-6, m_est=150.0,
                                   f_c_est=80.0)
     maneuver = dataclasses.replace(paper.maneuver, x_ref=1e-3, T=T_pid, duration=1.0,
@@ -215,11 +243,12 @@ def test_fmu_pid_equals_the_python_pid_bit_for_bit(pulse_controller_fmu: Path, p
 
 @pytest.mark.parametrize("variant", ["pwc", "papwc_inf", "exact"])
 def test_fmu_controller_around_the_plant_fmu_equals_the_python_loop(
-    pulse_controller_fmu: Path, friction_plant_fmu: Path, paper: Scenario, variant: str
+    builds, friction_plant_fmu: Path, paper: Scenario, variant: str
 ) -> None:
-    """PulseController.fmu closed around FrictionPlant.fmu, both FMUs stepped by the master:
+    """The controller FMU closed around FrictionPlant.fmu, both FMUs stepped by the master:
     the Python controller around the in-process plant, bit for bit."""
     settings, maneuver = case(paper, variant)
+    pulse_controller_fmu = builds[build_of(settings.kind)][0]
     maneuver = dataclasses.replace(maneuver, iterations=2, timing="delayed")
     with (controller_fmu(pulse_controller_fmu, settings, maneuver.T) as controller,
           FmuSlave(friction_plant_fmu) as plant):
@@ -228,19 +257,33 @@ def test_fmu_controller_around_the_plant_fmu_equals_the_python_loop(
     assert_same_runs(result, python_run(settings, paper.plant, maneuver))
 
 
-def test_python_controller_slave_and_fmu_slave_offer_the_same_variables(
-    pulse_controller_fmu: Path,
-) -> None:
+@pytest.mark.parametrize("build", ["native", "python"])
+def test_python_controller_slave_and_fmu_slave_offer_the_same_variables(builds,
+                                                                        build: str) -> None:
     python = ControllerSlave(make_controller(ControllerSettings(), T))
-    with FmuSlave(pulse_controller_fmu, name="controller") as fmu:
+    with FmuSlave(builds[build][0], name="controller") as fmu:
         for name, causality in python.variables().items():
             assert fmu.variables()[name] == causality, name
 
 
 # -- refusals and estimates (FMI calls made by the test) ----------------------------------------
+@pytest.fixture(params=["native", "python"])
+def controller(builds, request):
+    """An instance of each build (the test runs once per build)."""
+    c = FmuInstance(builds[request.param][1], "controller")
+    c.build = request.param
+    yield c
+    try:  # the native build refuses fmi2Terminate before initialization has ended
+        c.fmu.terminate()
+    except FMICallException:
+        assert request.param == "native"
+    c.close(terminate=False)
+
+
 @pytest.fixture
-def controller(pulse_controller_unzipped: Path):
-    c = FmuInstance(pulse_controller_unzipped, "controller")
+def python_controller(pulse_controller_python_unzipped: Path):
+    """An instance of PulseControllerPython.fmu (the kinds exact and dual_loop)."""
+    c = FmuInstance(pulse_controller_python_unzipped, "controller")
     yield c
     c.close()
 
@@ -281,6 +324,8 @@ def test_mode_before_the_first_step_is_its_start_value(controller: FmuInstance) 
 
 @pytest.mark.parametrize("kind", sorted(CONTROLLER_KINDS))
 def test_the_kind_is_a_string_parameter(controller: FmuInstance, kind: str) -> None:
+    if controller.build == "native" and kind not in NATIVE_KINDS:
+        pytest.skip("the native build refuses it (test_native_controller_fmu.py)")
     controller.init(kind=kind, x_ref=0.01)
     assert controller.get("kind") == kind
     first = make_controller(ControllerSettings(kind=kind), T).update(0.0, 0.0, 0.01)
@@ -316,8 +361,7 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
     ("name", "value", "expected"),
     [
         ("K_c", 2.5, "parameter K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"),
-        ("kind", "bogus", "parameter kind = 'bogus': must be one of 'dual_loop', 'exact', "
-                                 "'papwc', 'pid', 'pwc'"),
+        ("kind", "bogus", "parameter kind = 'bogus': must be one of "),
         ("k_p", -5.0, "parameter k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m; "
                       "k_p_given = false selects the default"),
         ("T", 0.0, "parameter T = 0.0 s: must satisfy 1e-09 <= T <= 1000 s"),
@@ -336,13 +380,30 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
 )
 def test_invalid_settings_are_refused(controller: FmuInstance, name: str, value,
                                       expected: str) -> None:
+    """One logged message naming the parameter, its value and what is allowed; the native
+    build refuses initialization with fmi2Error (the instance stays in initialization mode),
+    the pythonfmu build with fmi2OK and a Discard at every doStep."""
     read = {"k_p": {"k_p_given": True}, "t_p_max": {"t_p_max_given": True}}
+    if controller.build == "native":
+        with pytest.raises(FMICallException) as refused:
+            controller.init(**{name: value}, **read.get(name, {}))
+        assert refused.value.status == FMI2_ERROR
+        errors = controller.logged(FMI2_ERROR)
+        assert len(errors) == 1 and errors[0].startswith(f"controller: {expected}"), \
+            controller.messages
+        with pytest.raises(FMICallException) as info:
+            sample(controller, 0.0, 0.0)
+        assert info.value.status == FMI2_ERROR
+        assert "initialization mode" in controller.messages[-1].text
+        assert controller.get("u") == 0.0
+        return
     controller.init(**{name: value}, **read.get(name, {}))  # fmi2OK: the refusal is logged
     errors = controller.logged(FMI2_ERROR)
     assert len(errors) == 1 and expected in errors[0], controller.messages
     assert "initialization refused" in errors[0]
-    assert errors[0] == (f"controller: {expected}; initialization refused, doStep will "
-                         "return Discard")
+    if name != "kind":
+        assert errors[0] == (f"controller: {expected}; initialization refused, doStep will "
+                             "return Discard")
     with pytest.raises(FMICallException) as info:
         sample(controller, 0.0, 0.0)
     assert info.value.status == FMI2_DISCARD
@@ -350,9 +411,11 @@ def test_invalid_settings_are_refused(controller: FmuInstance, name: str, value,
     assert controller.get("u") == 0.0
 
 
-def test_a_switch_decides_whether_the_real_is_read(pulse_controller_unzipped: Path) -> None:
+@pytest.mark.parametrize("build", ["native", "python"])
+def test_a_switch_decides_whether_the_real_is_read(builds, build: str) -> None:
     """k_p_given = false (the start): k_p is computed and a k_p set away from its start is
     refused, not ignored; true: k_p is read. The same coarse force shows which gain acts."""
+    pulse_controller_unzipped = builds[build][1]
     forces = {}
     for label, start in (("computed", {}), ("start value", {"k_p": 15000.0}),
                          ("given", {"k_p": 20000.0, "k_p_given": True}),
@@ -371,11 +434,18 @@ def test_a_switch_decides_whether_the_real_is_read(pulse_controller_unzipped: Pa
     assert forces["given"] == pytest.approx(20000.0 * 0.03 + 80.0, rel=1e-12)
     c = FmuInstance(pulse_controller_unzipped, "controller")
     try:
+        words = ("parameter k_p = 20000.0 N/m is not read while k_p_given = false (k_p is "
+                 "computed): set k_p_given = true to use it, or leave k_p at its start value "
+                 "15000.0")
+        if build == "native":
+            with pytest.raises(FMICallException):
+                c.init(k_p=20000.0)
+            (error,) = c.logged(FMI2_ERROR)
+            assert error == f"controller: {words}"
+            return
         c.init(k_p=20000.0)
         (error,) = c.logged(FMI2_ERROR)
-        assert ("parameter k_p = 20000.0 N/m is not read while k_p_given = false (k_p is "
-                "computed): set k_p_given = true to use it, or leave k_p at its start value "
-                "15000.0; initialization refused") in error
+        assert f"{words}; initialization refused" in error
         with pytest.raises(FMICallException) as info:
             sample(c, 0.0, 0.0)
         assert info.value.status == FMI2_DISCARD
@@ -398,7 +468,9 @@ def closed_loop(controller, plant, start_time: float = 0.0) -> tuple[Execution, 
     return execution, signals, states
 
 
-def test_state_get_set_and_serialization(pulse_controller_unzipped: Path, paper) -> None:
+@pytest.mark.parametrize("build", ["native", "python"])
+def test_state_get_set_and_serialization(builds, paper, build: str) -> None:
+    pulse_controller_unzipped = builds[build][1]
     settings = paper.controllers[2]
     controller = FmuInstance(pulse_controller_unzipped, "a")
     other = FmuInstance(pulse_controller_unzipped, "b")
@@ -412,7 +484,8 @@ def test_state_get_set_and_serialization(pulse_controller_unzipped: Path, paper)
         execution.step(80)
         first = signals.rows[41:]
         assert len({row[1] for row in first}) > 1  # pulses happen after the snapshot
-        assert json.loads(data)["papwc_fmu_state"] == "PulseController"
+        if build == "python":
+            assert json.loads(data)["papwc_fmu_state"] == "PulseControllerPython"
 
         def resumed(instance: FmuInstance, snapshot) -> list:
             """80 samples from the snapshot, the plant back at (x, v)."""
@@ -439,12 +512,13 @@ def test_state_get_set_and_serialization(pulse_controller_unzipped: Path, paper)
         other.close()
 
 
-def test_a_controller_state_that_does_not_fit_is_refused(pulse_controller_unzipped: Path,
-                                                         paper) -> None:
+def test_a_controller_state_that_does_not_fit_is_refused(
+        pulse_controller_python_unzipped: Path, paper) -> None:
     """A state whose controller state does not fit the kind it names is refused before
-    anything changes; the instance keeps working."""
-    source = FmuInstance(pulse_controller_unzipped, "source")
-    target = FmuInstance(pulse_controller_unzipped, "target")
+    anything changes; the instance keeps working (the pythonfmu build; the native one:
+    test_native_controller_fmu.py)."""
+    source = FmuInstance(pulse_controller_python_unzipped, "source")
+    target = FmuInstance(pulse_controller_python_unzipped, "target")
     try:
         source.init(**settings_start_values(paper.controllers[2], T), x_ref=0.01)
         sample(source, 0.0, 0.0)
@@ -462,9 +536,11 @@ def test_a_controller_state_that_does_not_fit_is_refused(pulse_controller_unzipp
         target.close()
 
 
+@pytest.mark.parametrize("build", ["native", "python"])
 def test_the_maneuver_input_starts_a_new_maneuver_keeping_the_estimates(
-    pulse_controller_unzipped: Path, paper
+    builds, paper, build: str
 ) -> None:
+    pulse_controller_unzipped = builds[build][1]
     settings = paper.controllers[2]
     controller = FmuInstance(pulse_controller_unzipped, "controller")
     try:
@@ -527,7 +603,7 @@ DUAL_IDENTIFIED = dataclasses.replace(DUAL, f_mode=0.0, identify_mode=True)
 @pytest.mark.parametrize("timing", ["immediate", "delayed"])
 @pytest.mark.parametrize("settings", [DUAL, DUAL_IDENTIFIED], ids=["f_mode", "identified"])
 def test_fmu_dual_loop_equals_the_python_controller_bit_for_bit(
-    pulse_controller_fmu: Path, friction_plant_fmu: Path, timing: str,
+    pulse_controller_python_fmu: Path, friction_plant_fmu: Path, timing: str,
     settings: ControllerSettings
 ) -> None:
     """The dual_loop kind in PulseController.fmu, its input x_d_meas connected by the master,
@@ -535,7 +611,7 @@ def test_fmu_dual_loop_equals_the_python_controller_bit_for_bit(
     controller around the in-process plant, the motor encoder's columns too; with the mode
     told (f_mode) and identified (identify_mode)."""
     maneuver = Maneuver(x_ref=1e-3, T=T, duration=2.0, iterations=3, timing=timing)
-    with (controller_fmu(pulse_controller_fmu, settings, T) as controller,
+    with (controller_fmu(pulse_controller_python_fmu, settings, T) as controller,
           FmuSlave(friction_plant_fmu) as plant):
         plant.set_start_values(FLEXIBLE)
         result = run_closed_loop(plant, controller, maneuver, settings)
@@ -561,10 +637,11 @@ def test_fmu_dual_loop_equals_the_python_controller_bit_for_bit(
 
 
 def test_fmu_dual_loop_refuses_a_mode_above_a_quarter_of_the_sample_rate(
-    controller: FmuInstance
+    python_controller: FmuInstance
 ) -> None:
     """f_mode = 40 Hz at T = 10 ms: the refusal is logged (naming f_mode and the bound 25 Hz)
     and every doStep is discarded with it."""
+    controller = python_controller
     controller.init(kind="dual_loop", f_mode=40.0, x_ref=1e-3)
     errors = controller.logged(FMI2_ERROR)
     assert len(errors) == 1 and "f_mode = 40.0 Hz" in errors[0], controller.messages
@@ -576,8 +653,9 @@ def test_fmu_dual_loop_refuses_a_mode_above_a_quarter_of_the_sample_rate(
 
 
 def test_fmu_dual_loop_refuses_a_motor_reading_that_is_not_finite(
-    controller: FmuInstance
+    python_controller: FmuInstance
 ) -> None:
+    controller = python_controller
     controller.init(kind="dual_loop", f_mode=20.0, x_ref=1e-3)
     assert sample(controller, 0.0, 0.0) > 0.0  # the first pulse
     controller.set("x_d_meas", math.nan)

@@ -16,6 +16,7 @@ from fmpy import read_model_description
 from harness import FmuInstance
 
 from papwc.fmubuild.model_description import read_model_description as read_md_xml
+from papwc.fmubuild.native_tables import NATIVE_KINDS
 from papwc.model.controller_settings import KIND_CODES, PULSE_CONTROLLER_VARIABLES
 from papwc.model.plant import PLANT_OUTPUTS, PLANT_PARAMETERS
 
@@ -110,8 +111,11 @@ def run(c: FmuInstance, steps: int = 3) -> list[float]:
 
 
 @pytest.mark.parametrize("code", range(len(KIND_CODES) + 1))
-def test_kind_code_selects_the_kind(pulse_controller_unzipped: Path, code) -> None:
-    c = controller(pulse_controller_unzipped)
+def test_kind_code_selects_the_kind(pulse_controller_unzipped: Path,
+                                    pulse_controller_python_unzipped: Path, code) -> None:
+    """Each kind in the build that has it (the native one: pwc, papwc, pid)."""
+    native = code == 0 or KIND_CODES[code - 1] in NATIVE_KINDS
+    c = controller(pulse_controller_unzipped if native else pulse_controller_python_unzipped)
     try:
         c.set("kind_code", code)
         c.set("x_ref_offset", 0.01)
@@ -123,7 +127,11 @@ def test_kind_code_selects_the_kind(pulse_controller_unzipped: Path, code) -> No
         c.close()
 
 
-def test_kind_and_kind_code_that_disagree_are_refused(pulse_controller_unzipped: Path) -> None:
+def test_kind_and_kind_code_that_disagree_are_refused(
+        pulse_controller_python_unzipped: Path) -> None:
+    """The pythonfmu build (the native one refuses with fmi2Error at initialization:
+    test_native_controller_fmu.py)."""
+    pulse_controller_unzipped = pulse_controller_python_unzipped
     c = controller(pulse_controller_unzipped)
     try:
         c.set("kind", "pwc")

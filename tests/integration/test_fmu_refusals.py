@@ -58,9 +58,11 @@ def try_state(fmu: FmuInstance, data: bytes) -> str:
 
 
 @pytest.fixture
-def instances(pythonfmu_plant_unzipped: Path, pulse_controller_unzipped: Path):
+def instances(pythonfmu_plant_unzipped: Path, pulse_controller_python_unzipped: Path):
+    """The pythonfmu builds (the native ones: test_native_fmu.py,
+    test_native_controller_fmu.py)."""
     plant = started(pythonfmu_plant_unzipped, "plant")
-    controller = started(pulse_controller_unzipped, "controller")
+    controller = started(pulse_controller_python_unzipped, "controller")
     yield plant, controller
     plant.close()
     controller.close()
@@ -224,13 +226,13 @@ def test_a_percent_in_a_logged_value_is_shown_not_executed(pulse_controller_fmu:
     assert "c%n%n: parameter" in done.stdout
 
 
-def test_pulse_controller_refusals_are_not_silent(pulse_controller_fmu: Path, capfd,
+def test_pulse_controller_refusals_are_not_silent(pulse_controller_python_fmu: Path, capfd,
                                                   monkeypatch) -> None:
     """Issue 27: pythonfmu returns fmi2OK for a refused set or setFMUstate (it cannot return
-    fmi2Error); PulseController.fmu writes the refusal to stderr as well as logging it with
-    status Error, and the master raises on it as on fmi2Error."""
+    fmi2Error); PulseControllerPython.fmu writes the refusal to stderr as well as logging it
+    with status Error, and the master raises on it as on fmi2Error."""
     monkeypatch.setenv("PAPWC_FMU_STDERR", "1")
-    with FmuSlave(pulse_controller_fmu, name="controller") as controller:
+    with FmuSlave(pulse_controller_python_fmu, name="controller") as controller:
         controller.initialize()
         capfd.readouterr()
         with pytest.raises(FmuError, match=r"controller: setting K_c at t = 0.0 s was refused: "
@@ -239,5 +241,6 @@ def test_pulse_controller_refusals_are_not_silent(pulse_controller_fmu: Path, ca
             controller._set_now({"K_c": 0.5})
         err = capfd.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith(
-            "PulseController controller: parameter K_c cannot be set after initialization"), err
+            "PulseControllerPython controller: parameter K_c cannot be set after "
+            "initialization"), err
         assert "pythonfmu returns fmi2OK for this call" in err[0]

@@ -469,12 +469,10 @@ def test_ecos_command_line_runs_it_without_python(ecos_binary: Path, friction_pl
     assert xs[-1] > hosts.PLANT["x0"] + 1e-3
 
 
-@pytest.mark.slow
-def test_fmpy_builds_the_sources_into_a_working_binary(friction_plant_fmu: Path,
-                                                       tmp_path: Path) -> None:
-    """fmpy's build_platform_binary (CMake) compiles sources/ (zig as the C compiler); with
-    the flags the sources ask for (CFLAGS=-ffp-contract=off: no fused multiply-adds), the
-    binary built gives the shipped one's trajectory bit for bit."""
+def build_sources(fmu: Path, tmp_path: Path) -> Path:
+    """The FMU extracted into ``tmp_path``, its linux64 binary built anew from ``sources/`` by
+    fmpy's build_platform_binary (CMake, zig as the C compiler, CFLAGS=-ffp-contract=off);
+    the folder. Skips where cmake or make is missing (fails in CI)."""
     beside = Path(sys.executable).parent  # pip's cmake (the test extra) in this environment
     cmake = shutil.which("cmake") or shutil.which("cmake", path=str(beside))
     if cmake is None:
@@ -483,11 +481,11 @@ def test_fmpy_builds_the_sources_into_a_working_binary(friction_plant_fmu: Path,
         pytest.skip("cmake is not installed")
     if shutil.which("make") is None:  # CMake's default generator on Linux
         pytest.skip("make is not installed (CMake's Unix Makefiles generator needs it)")
-    from fmpy import extract, simulate_fmu
+    from fmpy import extract
     from fmpy.build import build_platform_binary
 
-    unzipped = Path(extract(str(friction_plant_fmu), str(tmp_path / "fmu")))
-    shipped = unzipped / "binaries" / "linux64" / "FrictionPlant.so"
+    unzipped = Path(extract(str(fmu), str(tmp_path / "fmu")))
+    shipped = unzipped / "binaries" / "linux64" / f"{fmu.stem}.so"
     shipped.unlink()
     compiler = tmp_path / "zigcc"
     compiler.write_text(f'#!/bin/sh\nexec "{sys.executable}" -m ziglang cc "$@"\n')
@@ -503,6 +501,18 @@ def test_fmpy_builds_the_sources_into_a_working_binary(friction_plant_fmu: Path,
         os.environ.clear()
         os.environ.update(old)
     assert shipped.is_file()
+    return unzipped
+
+
+@pytest.mark.slow
+def test_fmpy_builds_the_sources_into_a_working_binary(friction_plant_fmu: Path,
+                                                       tmp_path: Path) -> None:
+    """fmpy's build_platform_binary (CMake) compiles sources/ (zig as the C compiler); with
+    the flags the sources ask for (CFLAGS=-ffp-contract=off: no fused multiply-adds), the
+    binary built gives the shipped one's trajectory bit for bit."""
+    unzipped = build_sources(friction_plant_fmu, tmp_path)
+    from fmpy import simulate_fmu
+
     signal = [(0.0, 300.0), (0.05, 300.0), (0.05, 0.0), (1.0, 0.0)]
     import numpy as np
 
@@ -522,16 +532,34 @@ def _rss() -> int:
         return int(f.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-@pytest.mark.slow
-@pytest.mark.skipif(not Path("/proc/self/statm").is_file(), reason="needs /proc (Linux)")
-def test_ten_thousand_instances_do_not_grow_the_memory(friction_plant_unzipped: Path) -> None:
-    md = read_model_description(str(friction_plant_unzipped))
-    library = ctypes.CDLL(str(friction_plant_unzipped / "binaries" / "linux64" /
-                              "FrictionPlant.so"))
+def fmi_library(unzipped: Path) -> ctypes.CDLL:
+    """The linux64 binary of an extracted FMU, fmi2Instantiate typed."""
+    md = read_model_description(str(unzipped))
+    library = ctypes.CDLL(str(unzipped / "binaries" / "linux64" /
+                              f"{md.coSimulation.modelIdentifier}.so"))
     library.fmi2Instantiate.restype = ctypes.c_void_p
     library.fmi2Instantiate.argtypes = [ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
                                         ctypes.c_char_p, ctypes.c_void_p, ctypes.c_int,
                                         ctypes.c_int]
+    return library
+
+
+def rss_growth(cycle, n: int = 10_000) -> int:
+    """Bytes the RSS grows by over ``n`` calls of ``cycle`` (after 500 that let the
+    allocator's pools settle)."""
+    for _ in range(500):
+        cycle()
+    before = _rss()
+    for _ in range(n):
+        cycle()
+    return _rss() - before
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not Path("/proc/self/statm").is_file(), reason="needs /proc (Linux)")
+def test_ten_thousand_instances_do_not_grow_the_memory(friction_plant_unzipped: Path) -> None:
+    md = read_model_description(str(friction_plant_unzipped))
+    library = fmi_library(friction_plant_unzipped)
     for name in ("fmi2SetupExperiment", "fmi2EnterInitializationMode",
                  "fmi2ExitInitializationMode", "fmi2DoStep", "fmi2Terminate",
                  "fmi2FreeInstance", "fmi2SetReal", "fmi2GetFMUstate", "fmi2FreeFMUstate"):
@@ -555,12 +583,7 @@ def test_ten_thousand_instances_do_not_grow_the_memory(friction_plant_unzipped: 
         assert library.fmi2Terminate(c) == FMI2_OK
         library.fmi2FreeInstance(c)
 
-    for _ in range(500):  # the allocator's pools settle
-        cycle()
-    before = _rss()
-    for _ in range(10_000):
-        cycle()
-    grown = _rss() - before
+    grown = rss_growth(cycle)
     report("RSS growth over 10,000 instantiate/initialize/step/state/free cycles (bytes)",
            grown)
     assert grown < 1 << 20

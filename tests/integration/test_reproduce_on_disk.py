@@ -26,11 +26,11 @@ def test_reproduce_interrupted_keeps_the_finished_controllers(
     real = papwc.scenario_run.run_controller
     seen: list[str] = []
 
-    def third_interrupted(slave, settings, maneuver, label="", observers=()):
+    def third_interrupted(slave, settings, maneuver, label="", observers=(), library=None):
         seen.append(label)
         if len(seen) == 3:
             raise KeyboardInterrupt
-        return real(slave, settings, maneuver, label, observers)
+        return real(slave, settings, maneuver, label, observers, library)
 
     monkeypatch.setattr(papwc.scenario_run, "run_controller", third_interrupted)
     out = tmp_path / "repro"

@@ -136,6 +136,7 @@ def run_battery(
     progress: bool = True,
     max_runs: int = MAX_RUNS,
     max_steps: int = MAX_STEPS,
+    controller_fmu: str | os.PathLike | None = None,
 ) -> BatteryOutcome:
     """Run batteries and write their results into ``out``.
 
@@ -161,6 +162,12 @@ def run_battery(
     max_runs, max_steps : int
         Limits of the runs of the batteries and of the steps of one run
         (checked before any run).
+    controller_fmu : path, optional
+        The native PulseController.fmu whose C controller the workers run for the kinds it
+        implements (a worker that cannot load it, e.g. on another machine of a Dask
+        cluster, runs the Python controllers); None: the Python controllers. The results
+        are the same numbers either way; its GUID is part of the journal's key (a journal
+        is resumed only with the controllers it was begun with).
 
     Returns
     -------
@@ -216,7 +223,16 @@ def run_battery(
     runs = plan_runs(batteries, max_runs=max_runs, max_steps=max_steps)
     offsets = {b.seed_offset for b in batteries}
     digest = _sha256(fmu)
-    key = result_key(md.guid)
+    identity = md.guid
+    if controller_fmu is not None:  # the C controller computes too: its build keys the runs
+        from papwc.errors import BuildError
+        from papwc.fmubuild.model_description import read_model_description
+
+        try:
+            identity += " " + (read_model_description(Path(controller_fmu)).get("guid") or "")
+        except BuildError as exc:
+            raise BatteryError(f"controller FMU: {exc}") from None
+    key = result_key(identity)
     fingerprint = hashlib.sha256(json.dumps(
         [key] + [[s.battery, s.run_id, s.run_hash] for s in runs]).encode()).hexdigest()
     header = {"type": "header", "format": JOURNAL_FORMAT, "key": key,
@@ -259,8 +275,11 @@ def run_battery(
 
             def task(spec) -> dict:
                 battery = by_name[spec.battery]
-                return {**spec.task(battery.source), "key": key,
-                        "timeout": battery.run_timeout}
+                out = {**spec.task(battery.source), "key": key,
+                       "timeout": battery.run_timeout}
+                if controller_fmu is not None:
+                    out["controller_fmu"] = str(Path(controller_fmu).resolve())
+                return out
 
             for spec in todo:
                 if spec.error:

@@ -93,12 +93,13 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         Exceptions are caught and recorded, never raised.
     """
     from papwc.interrupts import RunTimeout
+    from papwc.master.native_controller import fmu_controller_library
     from papwc.master.native_plant import plant_library
     from papwc.results.pulses import PulseBound
     from papwc.results.summary import summarize
     from papwc.scenario_run import run_scenario
 
-    start = time.perf_counter()
+    start, cpu_start = time.perf_counter(), time.process_time()
     record = {"type": "run", "battery": task["battery"], "run_id": task["run_id"],
               "run_hash": task["run_hash"], "params": task["data"], "status": "ok",
               "message": "", "controllers": []}
@@ -107,7 +108,8 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
     try:
         scenario = parse_scenario(task["data"], f"{task['source']} run {task['run_id']}")
         results = run_scenario(scenario, "fmu", fmu_path, unzip_dir=unzip_dir,
-                               timeout=task.get("timeout"))
+                               timeout=task.get("timeout"),
+                               library=fmu_controller_library(task.get("controller_fmu")))
         bound = PulseBound(scenario.plant, scenario.maneuver.T, plant_library(unzip_dir))
         for result in results:
             settings = result.settings
@@ -138,6 +140,7 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         record["status"] = "error"
         record["message"] = f"{type(exc).__name__}: {exc}"
     record["elapsed_s"] = time.perf_counter() - start
+    record["cpu_s"] = time.process_time() - cpu_start  # (journal only: papwc bench reads it)
     return record
 
 

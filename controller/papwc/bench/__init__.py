@@ -4,7 +4,8 @@ A section is a function ``f(context) -> list[Row]`` registered with
 :func:`register_section`; :func:`run_sections` calls every registered section
 in order and prints its rows as a small table. The sections are in
 :mod:`.plant_calls`, :mod:`.rodas_products`, :mod:`.native_step`, :mod:`.master_step`,
-:mod:`.battery_throughput`, :mod:`.update_time`, :mod:`.realism_time`,
+:mod:`.native_controller`, :mod:`.battery_throughput`, :mod:`.update_time`,
+:mod:`.realism_time`,
 :mod:`.cosim_memory` and :mod:`.identify_time`; add one by writing such a function in a
 module imported by :func:`load_sections` and decorating it::
 
@@ -190,7 +191,8 @@ def median_interleaved(
 
 #: Modules that register sections, in the order their sections run.
 SECTION_MODULES = ("plant_calls", "rodas_products", "native_step", "master_step",
-                   "battery_throughput", "update_time", "realism_time", "cosim_memory",
+                   "native_controller", "battery_throughput", "update_time", "realism_time",
+                   "cosim_memory",
                    "identify_time")
 
 

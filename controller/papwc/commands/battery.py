@@ -59,7 +59,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                       help="start afresh even if DIR holds the journal of a battery")
     parser.add_argument("--quiet", action="store_true",
                         help="no progress bar and no report on stdout")
-    from papwc.commands.run import add_max_steps, positive_int
+    from papwc.commands.run import add_controllers_option, add_max_steps, positive_int
     from papwc.limits import MAX_RUNS
 
     parser.add_argument("--max-runs", type=positive_int, default=MAX_RUNS, metavar="N",
@@ -76,6 +76,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "plant.seed and maneuver.noise_seed (judge a controller on "
                              "tables it was not tuned on; compare with `papwc spec`); "
                              "default 0, the file's own")
+    add_controllers_option(parser)
 
 
 #: Largest ``--workers`` per core this process may run on.
@@ -110,12 +111,16 @@ def run(args: argparse.Namespace) -> int:
     if out is None:
         out = Path("results") / (batteries[0].name if len(batteries) == 1 else "battery")
     fmu = ensure_plant_fmu(args.fmu, out)
+    from papwc.scenario_run import controller_fmu as controllers_fmu
+
+    controller_fmu = controllers_fmu(args.controllers, out)
     try:
         with _sigterm_as_interrupt():
             outcome = run_battery(batteries, out, fmu, workers=args.workers,
                                   scheduler=args.scheduler, resume=args.resume,
                                   overwrite=args.overwrite, progress=not args.quiet,
-                                  max_runs=args.max_runs, max_steps=args.max_steps)
+                                  max_runs=args.max_runs, max_steps=args.max_steps,
+                                  controller_fmu=controller_fmu)
     except BatteryInterrupted as stop:
         again = " ".join(shlex.quote(str(f)) for f in args.files)
         from papwc.limits import MAX_RUNS, MAX_STEPS
@@ -125,7 +130,8 @@ def run(args: argparse.Namespace) -> int:
             ("--fmu", args.fmu), ("--scheduler", args.scheduler), ("--workers", args.workers),
             ("--max-runs", args.max_runs if args.max_runs != MAX_RUNS else None),
             ("--max-steps", args.max_steps if args.max_steps != MAX_STEPS else None),
-            ("--seed-offset", args.seed_offset or None))
+            ("--seed-offset", args.seed_offset or None),
+            ("--controllers", args.controllers if args.controllers != "auto" else None))
             if value is not None) + (" --quiet" if args.quiet else "")
         what = "terminated (SIGTERM)" if _TERMINATED["by"] else "interrupted"
         print(f"papwc battery: {what}: {stop.done} of {stop.total} runs are in the "

@@ -8,20 +8,22 @@ from pathlib import Path
 from papwc.commands import default_out
 
 HELP = (
-    "build the FMUs (FrictionPlant.fmu, PulseController.fmu, PapwcTrivial.fmu) and "
-    "ClosedLoop.ssp into a folder"
+    "build the FMUs (FrictionPlant.fmu, PulseController.fmu, PulseControllerPython.fmu, "
+    "PapwcTrivial.fmu) and ClosedLoop.ssp into a folder"
 )
 
 EPILOG = """\
 examples:
   papwc build                      # in a checkout: writes build/FrictionPlant.fmu,
-                                   # build/PulseController.fmu, build/PapwcTrivial.fmu,
-                                   # build/ClosedLoop.ssp
+                                   # build/PulseController.fmu (C: pwc, papwc, pid),
+                                   # build/PulseControllerPython.fmu (pythonfmu: every
+                                   # kind), build/PapwcTrivial.fmu, build/ClosedLoop.ssp
   papwc build --out /tmp/fmus      # writes into /tmp/fmus
   papwc build --backend pythonfmu  # FrictionPlant.fmu made with pythonfmu (runs in the
                                    # host's Python 3.10+) instead of the native one
   papwc build --scenario scenarios/long_move.toml --controller 2
                                    # ClosedLoop.ssp for another scenario's 2nd controller
+                                   # (PulseControllerPython.fmu in it for exact, dual_loop)
   fmpy simulate build/FrictionPlant.fmu --output-interval 0.01 --stop-time 1 \\
       --input-file scenarios/pulse_in.csv --output-file pulse_out.csv
 """
@@ -37,8 +39,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         default=DEFAULT_BACKEND,
         help="how FrictionPlant.fmu is made: 'native' (C, compiled by zig for win64, "
         "linux64 and darwin64; no Python in the host) or 'pythonfmu' (the model layer in "
-        "the host's Python 3.10 or newer); default: %(default)s. PulseController.fmu and "
-        "PapwcTrivial.fmu are pythonfmu FMUs either way",
+        "the host's Python 3.10 or newer); default: %(default)s. PulseController.fmu is "
+        "native, PulseControllerPython.fmu and PapwcTrivial.fmu are pythonfmu FMUs either way",
     )
     parser.add_argument(
         "--out",

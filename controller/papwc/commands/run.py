@@ -34,6 +34,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "physics in-process")
     add_fmu_option(parser)
     add_max_steps(parser)
+    add_controllers_option(parser)
+
+
+def add_controllers_option(parser: argparse.ArgumentParser) -> None:
+    """The option ``--controllers`` (shared with ``papwc battery``)."""
+    parser.add_argument("--controllers", choices=("auto", "native", "python"), default="auto",
+                        help="run the kinds pwc, papwc and pid with the C controller of "
+                             "PulseController.fmu (native: built into OUT/fmu if needed; "
+                             "auto, the default: where build/PulseController.fmu is current, "
+                             "after papwc build) or every kind with the Python controllers "
+                             "(python); the same numbers either way. exact and dual_loop are "
+                             "Python")
 
 
 def add_max_steps(parser: argparse.ArgumentParser) -> None:
@@ -72,8 +84,11 @@ def run(args: argparse.Namespace) -> int:
     fmu = ensure_plant_fmu(args.fmu, out) if args.plant == "fmu" else None
     folder = ResultsFolder(out, scenario.labels, warnings, scenario=scenario)
     folder.start()
+    from papwc.scenario_run import controller_library
+
+    library = controller_library(args.controllers, out)
     results = run_into_folder(folder, lambda progress: run_scenario(
-        scenario, args.plant, fmu, progress=progress))
+        scenario, args.plant, fmu, progress=progress, library=library))
     rows = run_into_folder(folder, lambda progress: folder.finish())
     print(format_table(rows))
     print(f"wrote {out / 'summary.csv'}, {len(rows)} rows, pulses.csv, traces and plots in "

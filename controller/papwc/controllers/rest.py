@@ -290,11 +290,17 @@ class RestDetector:
         if abs(last - first) > NOISE_DRIFT * math.sqrt(2.0 * var):
             return False
         self.add_noise(var)
-        # the window's readings are the present rest
+        # the window's readings are the present rest; summed one after another from 0.0, as
+        # Python 3.11's sum() does (3.12's compensates the rounding: another result, and not
+        # the C controller's, fmu_src/PulseController/controller.c)
         self.anchor = first
         self.lo, self.hi = min(ring), max(ring)
-        self.sum = sum(x - first for x in ring)
-        self.sum2 = sum((x - first) ** 2 for x in ring)
+        total = total2 = 0.0
+        for x in ring:
+            total += x - first
+        for x in ring:
+            total2 += (x - first) ** 2
+        self.sum, self.sum2 = total, total2
         self.n = NOISE_WINDOW
         self.look = 0
         self.ring_n = 0

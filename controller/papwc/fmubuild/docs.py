@@ -89,8 +89,13 @@ def escape_cell(text: str) -> str:
 
 def readme_tables() -> list[tuple[Path, str, str]]:
     """Each FMU readme with a generated table: (path, tag, table)."""
-    return [(recipe.folder / "readme.md", "variables", variable_table(recipe.variables))
-            for recipe in FMUS if (recipe.folder / "readme.md").is_file()]
+    found, seen = [], set()
+    for recipe in FMUS:  # (the two controller builds share one readme and their variables)
+        path = recipe.folder / "readme.md"
+        if path.is_file() and path not in seen:
+            seen.add(path)
+            found.append((path, "variables", variable_table(recipe.variables)))
+    return found
 
 
 def docs_tables() -> dict[str, str]:

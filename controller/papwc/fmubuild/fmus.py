@@ -1,22 +1,36 @@
 """The project's FMUs: what each is built from (:data:`FMUS`), and building them.
 
-Each FMU is a folder of ``fmu_src/`` (the model script, its readme, a reference
+A pythonfmu FMU is a folder of ``fmu_src/`` (the model script, its readme, a reference
 result) plus a bundle of the project's own packages, copied under a package
 name that no other FMU uses (pythonfmu FMUs in one process share one Python
 interpreter, and modules of the same name would shadow each other):
 
-================= ========================== ==========================================
 FMU               bundle package             bundled subpackages of papwc
 ================= ========================== ==========================================
 FrictionPlant     ``papwc_friction_plant``   ``model`` (physics, variables), ``fmi``
 PulseController   ``papwc_pulse_controller`` ``model``, ``controllers``, ``fmi``
 PapwcTrivial      (none)                     (none: the floor ``papwc bench`` measures)
 ================= ========================== ==========================================
+=======
+===================== ========================== =========================================
+FMU                   bundle package             bundled subpackages of papwc
+===================== ========================== =========================================
+FrictionPlant         ``papwc_friction_plant``   ``model`` (physics, variables), ``fmi``
+PulseControllerPython ``papwc_pulse_controller`` ``model``, ``controllers``, ``fmi``
+PapwcTrivial          (none)                     (none: the floor ``papwc bench`` measures)
+===================== ========================== =========================================
 
-FrictionPlant is also written in C (``fmu_src/FrictionPlant/*.c`` with the FMI glue of
-``fmu_src/fmi2/``), built by :mod:`.native_build` for win64, linux64 and darwin64: that
-native FMU is the default (:data:`DEFAULT_BACKEND`); ``backend="pythonfmu"`` builds the
-pythonfmu one. PulseController and PapwcTrivial are pythonfmu FMUs whatever the backend.
+A native FMU is C (``fmu_src/<Model>/*.c`` with the FMI glue of ``fmu_src/fmi2/``), built
+by :mod:`.native_build` for win64, linux64 and darwin64; it needs no Python in the host:
+
+- FrictionPlant: native by default (:data:`DEFAULT_BACKEND`); ``backend="pythonfmu"``
+  builds the pythonfmu one under the same name;
+- PulseController: always native, the controller kinds the C controller implements
+  (:data:`papwc.fmubuild.native_tables.NATIVE_KINDS`: pwc, papwc, pid);
+  PulseControllerPython, always pythonfmu (``fmu_src/PulseController/PulseControllerPython.py``),
+  has every kind (exact and dual_loop only there) and the same variables. ClosedLoop.ssp
+  takes PulseController.fmu for the kinds it has, else PulseControllerPython.fmu
+  (:func:`controller_fmu_name`).
 """
 
 from __future__ import annotations
@@ -44,6 +58,7 @@ __all__ = [
     "fmu_digest",
     "guid",
     "is_current",
+    "controller_fmu_name",
     "recipe",
 ]
 
@@ -73,7 +88,16 @@ class FmuRecipe:
     options : dict
         CoSimulation capability flags.
     native : bool
-        Whether the model is also written in C (``fmu_src/<name>/*.c``).
+        Whether the model is written in C (``fmu_src/<source>/*.c``).
+    python : bool
+        Whether it has a pythonfmu script (a native model without one is always native).
+    folder_name : str
+        Its folder in ``fmu_src/`` where that is not ``name``.
+    sections : tuple of str
+        The readme's sections copied into a native FMU's ``index.html``.
+    loader : bool
+        A pythonfmu FMU whose binary refuses in one line where the host has no Python
+        (:func:`papwc.fmubuild.pythonfmu_build.add_loader`).
     """
 
     name: str
@@ -82,11 +106,15 @@ class FmuRecipe:
     subpackages: tuple[str, ...] = ()
     options: dict[str, bool] = field(default_factory=lambda: dict(STATE_OPTIONS))
     native: bool = False
+    python: bool = True
+    folder_name: str = ""
+    sections: tuple[str, ...] = ("Equations",)
+    loader: bool = False
 
     @property
     def folder(self) -> Path:
         """The model's folder in fmu_src/."""
-        return fmu_src_dir() / self.name
+        return fmu_src_dir() / (self.folder_name or self.name)
 
     @property
     def script(self) -> Path:
@@ -107,7 +135,7 @@ class FmuRecipe:
     def source(self) -> FmuSource:
         """What the FMU is built from, with the paths of this installation."""
         return FmuSource(self.script, self.variables, self.package, self.bundle,
-                         self.documentation, options=self.options)
+                         self.documentation, options=self.options, loader=self.loader)
 
     def native_source(self):
         """What the native FMU is built from (:class:`.native_build.NativeSource`)."""
@@ -117,14 +145,16 @@ class FmuRecipe:
         return NativeSource(
             self.name, self.folder, fmu_src_dir() / "fmi2", self.variables,
             _DESCRIPTIONS.get(self.name, self.name), self.documentation,
-            reference if reference.is_file() else None, sections=("Equations",),
+            reference if reference.is_file() else None, sections=self.sections,
+            variable_step=self.options.get("canHandleVariableCommunicationStepSize", True),
         )
 
     def uses_native(self, backend: str) -> bool:
-        """Whether ``backend`` builds this FMU in C."""
+        """Whether ``backend`` builds this FMU in C (a model without a pythonfmu script is
+        built in C whatever the backend)."""
         if backend not in BACKENDS:
             raise BuildError(f"backend {backend!r}: must be one of " + ", ".join(BACKENDS))
-        return self.native and backend == "native"
+        return self.native and (backend == "native" or not self.python)
 
 
 #: One line on each native model (its model description's ``description``).
@@ -136,6 +166,13 @@ _DESCRIPTIONS = {
         "curve, LuGre pre-sliding, friction ripple, random stiction, actuator lag, flexible "
         "drive, encoder noise), integrated with error control where no closed form exists"
     ),
+    "PulseController": (
+        "Adaptive pulse controller for positioning a mass with stick-slip friction, in C: PWC "
+        "(kind pwc, Eqs. (5)-(9)), PAPWC (papwc, Eqs. (10)-(18)) or the PID baseline (pid); "
+        "at each communication step of size T it reads the measured position and the "
+        "reference and sets the force to hold over the next sample (the kinds exact and "
+        "dual_loop: PulseControllerPython.fmu)"
+    ),
 }
 
 
@@ -143,12 +180,17 @@ _DESCRIPTIONS = {
 FMUS: tuple[FmuRecipe, ...] = (
     FmuRecipe("FrictionPlant", PLANT_VARIABLES, "papwc_friction_plant", ("model", "fmi"),
               native=True),
+    FmuRecipe("PulseController", PULSE_CONTROLLER_VARIABLES,
+              options={**STATE_OPTIONS, "canHandleVariableCommunicationStepSize": False},
+              native=True, python=False, sections=("Sampling", "The two builds")),
     FmuRecipe(
-        "PulseController",
+        "PulseControllerPython",
         PULSE_CONTROLLER_VARIABLES,
         "papwc_pulse_controller",
         ("model", "controllers", "fmi"),
         {**STATE_OPTIONS, "canHandleVariableCommunicationStepSize": False},
+        folder_name="PulseController",
+        loader=True,
     ),
     FmuRecipe(
         "PapwcTrivial",
@@ -214,6 +256,15 @@ def current_fmu(name: str, out_dir: Path, backend: str = DEFAULT_BACKEND) -> Pat
 def build_all(out_dir: Path, backend: str = DEFAULT_BACKEND) -> list[Path]:
     """Build every FMU of :data:`FMUS` into ``out_dir``; return the paths written.
 
-    FrictionPlant is built with ``backend``; the others are pythonfmu FMUs.
+    FrictionPlant is built with ``backend``; PulseController is native,
+    PulseControllerPython and PapwcTrivial are pythonfmu FMUs.
     """
     return [build_fmu(r.name, out_dir, backend) for r in FMUS]
+
+
+def controller_fmu_name(kind: str) -> str:
+    """The controller FMU that runs kind ``kind``: PulseController (native) for the kinds
+    of :data:`papwc.fmubuild.native_tables.NATIVE_KINDS`, else PulseControllerPython."""
+    from papwc.fmubuild.native_tables import NATIVE_KINDS
+
+    return "PulseController" if kind in NATIVE_KINDS else "PulseControllerPython"

@@ -5,9 +5,10 @@
 - the FMI glue written once for every native FMU (``fmu_src/fmi2/``: ``fmi2_cs.c``,
   ``fmu_model.h``),
 - the model's C files (``fmu_src/<Model>/*.c``, ``*.h``),
-- headers generated from the model layer: ``plant_vars.h``
-  (:mod:`papwc.fmubuild.native_tables`) and ``fmu_config.h`` (model identifier, GUID and
-  the words of each parameter's range, :func:`config_header`),
+- headers generated from the model layer: the model's tables
+  (:data:`papwc.fmubuild.native_tables.GENERATED_HEADERS`: ``plant_vars.h``,
+  ``controller_vars.h``) and ``fmu_config.h`` (model identifier, GUID and the words of each
+  parameter's range, :func:`config_header`),
 - the FMI 2.0 headers shipped in fmpy (``fmpy/c-code``);
 
 compiled with zig's C compiler (pip ``ziglang``: ``python -m ziglang cc``) for
@@ -17,7 +18,8 @@ folder     target                  what it needs at run time
 ========== ======================= ================================================
 linux64    x86_64-linux-gnu.2.17   glibc >= 2.17 (libc, libm); no libgcc_s, libstdc++
 win64      x86_64-windows-gnu      KERNEL32 and the system C runtime
-darwin64   x86_64-macos + aarch64  libSystem; one universal (fat) Mach-O of both
+darwin64   x86_64-macos.10.13 +    libSystem of macOS 10.13 (x86_64) or 11 (arm64) or
+           aarch64-macos.11.0      later; one universal (fat) Mach-O of both
 ========== ======================= ================================================
 
 The archive holds ``sources/`` (every C file and header, with ``<SourceFiles>`` in the
@@ -68,6 +70,7 @@ __all__ = [
     "config_header",
     "fat_macho",
     "fmi_headers_dir",
+    "host_compiler",
     "prepared_tree",
     "zig_command",
 ]
@@ -81,7 +84,8 @@ C_FLAGS: tuple[str, ...] = ("-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-m
 TARGETS: dict[str, tuple[tuple[str, ...], str, tuple[str, ...]]] = {
     "linux64": (("x86_64-linux-gnu.2.17",), ".so", ("-fPIC", "-static-libgcc", "-lm")),
     "win64": (("x86_64-windows-gnu",), ".dll", ()),
-    "darwin64": (("x86_64-macos", "aarch64-macos"), ".dylib", ("-fPIC",)),
+    # the oldest macOS each declares (zig's default would be the newest, 15.0)
+    "darwin64": (("x86_64-macos.10.13", "aarch64-macos.11.0"), ".dylib", ("-fPIC",)),
 }
 
 #: The FMI 2.0 headers a native FMU is compiled against (from fmpy's ``c-code``).
@@ -130,6 +134,24 @@ def zig_command() -> list[str]:
 ZIG_VERSION = "0.17.1"
 
 
+def host_compiler(variable: str = "PAPWC_CC") -> list[str] | None:
+    """A C compiler for this machine (not a cross-compiler): the environment variable
+    ``variable`` (a command, split at spaces), else the system ``cc``, ``gcc`` or ``clang``,
+    else zig's (pip ``ziglang``); None if there is none."""
+    import importlib.util
+
+    chosen = os.environ.get(variable, "").split()
+    if chosen:
+        return chosen
+    for name in ("cc", "gcc", "clang"):
+        path = shutil.which(name)
+        if path:
+            return [path]
+    if importlib.util.find_spec("ziglang") is not None:
+        return [sys.executable, "-m", "ziglang", "cc"]
+    return None
+
+
 def zig_version() -> str | None:
     """The version of the installed zig (pip ``ziglang``), or None if it is not installed."""
     from importlib.metadata import PackageNotFoundError, version
@@ -164,6 +186,8 @@ class NativeSource:
         Headings of the readme's sections copied into ``index.html`` (the equations).
     default_experiment : (float, float, float)
         Start time, stop time and step size, s.
+    variable_step : bool
+        ``canHandleVariableCommunicationStepSize`` (a sampled controller: False).
     """
 
     name: str
@@ -175,6 +199,7 @@ class NativeSource:
     reference: Path | None = None
     sections: tuple[str, ...] = ()
     default_experiment: tuple[float, float, float] = (0.0, 1.0, 0.01)
+    variable_step: bool = True
 
     def c_files(self) -> list[Path]:
         """The C sources and headers written by hand (glue and model), sorted."""
@@ -193,9 +218,9 @@ class NativeSource:
 
     def generated(self) -> dict[str, str]:
         """The generated headers (file name -> text), without the GUID."""
-        from papwc.fmubuild.native_tables import HEADER_NAME, plant_header
+        from papwc.fmubuild.native_tables import GENERATED_HEADERS
 
-        return {HEADER_NAME: plant_header()}
+        return {name: write() for name, write in GENERATED_HEADERS.get(self.name, {}).items()}
 
     def digest(self) -> str:
         """SHA-256 (hex) of everything the FMU is built from (sources, tables, flags, zig)."""
@@ -213,7 +238,8 @@ class NativeSource:
         if self.reference is not None:
             add("ref", Path(self.reference).read_bytes())
         add("extra", repr((list(self.variables), self.description, self.sections,
-                           self.default_experiment, C_FLAGS, sorted(TARGETS.items()),
+                           self.default_experiment, self.variable_step, C_FLAGS,
+                           sorted(TARGETS.items()),
                            ZIG_VERSION, _words(self.variables))).encode())
         add("builder", Path(__file__).read_bytes())
         return h.hexdigest()
@@ -303,12 +329,14 @@ def fat_macho(thin: Sequence[bytes]) -> bytes:
     return head + b"\0" * (offset - len(head)) + body
 
 
-def compile_binaries(tree: Path, name: str) -> list[Path]:
+def compile_binaries(tree: Path, name: str,
+                     more: dict[str, tuple[str, ...]] | None = None) -> list[Path]:
     """Compile ``tree/sources/*.c`` for every platform of :data:`TARGETS` into
-    ``tree/binaries/<platform>/``."""
+    ``tree/binaries/<platform>/`` (``more``: further flags by platform folder)."""
     binaries = tree / "binaries"
     written = []
     for folder, (targets, suffix, extra) in TARGETS.items():
+        extra = (*extra, *(more or {}).get(folder, ()))
         (binaries / folder).mkdir(parents=True, exist_ok=True)
         out = binaries / folder / f"{name}{suffix}"
         if suffix == ".dylib":  # the install name is the file's, not the build folder's
@@ -347,7 +375,7 @@ def model_description_skeleton(source: NativeSource, guid_text: str,
     cs = ET.SubElement(root, "CoSimulation", {
         "modelIdentifier": source.name,
         "needsExecutionTool": "false",
-        "canHandleVariableCommunicationStepSize": "true",
+        "canHandleVariableCommunicationStepSize": "true" if source.variable_step else "false",
         "canInterpolateInputs": "false",
         "maxOutputDerivativeOrder": "0",
         "canRunAsynchronuously": "false",
@@ -474,7 +502,8 @@ font-size:90%}}</style></head>
 <h1>{e(source.name)}</h1>
 <p>{e(source.description)}</p>
 <p>FMI 2.0 Co-Simulation, compiled from C (the sources are in <code>sources/</code>) for
-win64, linux64 (glibc 2.17 or newer) and darwin64 (x86_64 and arm64). No Python is needed
+win64, linux64 (glibc 2.17 or newer) and darwin64 (x86_64: macOS 10.13 or newer; arm64:
+macOS 11 or newer). No Python is needed
 to run it. Every refused call returns fmi2Error (fmi2Discard for a step with a non-finite
 input or a step size that is not &gt; 0) and logs why when logging is on.</p>
 {readme_sections(source)}
@@ -596,7 +625,7 @@ def build_native(source: NativeSource, out_dir: Path) -> Path:
     """
     from fmpy.validation import validate_fmu
 
-    from papwc.fmubuild.prebuilt import take
+    from papwc.fmubuild.prebuilt import binaries
     from papwc.fmubuild.pythonfmu_build import guid
 
     source.check()
@@ -605,8 +634,7 @@ def build_native(source: NativeSource, out_dir: Path) -> Path:
     with prepared_tree(source) as tree:
         work = tree.parent
         guid_text = guid(source.digest())
-        if not take(tree, name):
-            compile_binaries(tree, name)
+        binaries(tree, name)  # those compiled when papwc was installed, else zig's
         docs = tree / "documentation"
         docs.mkdir()
         for doc in source.documentation:

@@ -4,7 +4,10 @@ The archive (mode 0644) holds ``SystemStructure.ssd`` and the two FMUs in
 ``resources/``:
 
 - component ``plant`` (``resources/FrictionPlant.fmu``) and component
-  ``controller`` (``resources/PulseController.fmu``);
+  ``controller``: ``resources/PulseController.fmu``, the native C controller, for the kinds
+  it implements (pwc, papwc, pid), else ``resources/PulseControllerPython.fmu`` (the
+  pythonfmu build, every kind), so that a host with no Python runs the closed loop of the
+  paper's controllers;
 - connections ``plant.x_meas -> controller.x_meas`` (the encoder output: what a
   real controller sees; it equals ``x`` with the ideal encoder,
   ``x_resolution = 0``) and ``controller.u -> plant.u``;
@@ -209,6 +212,36 @@ def _check_fmu(path: Path, component: str, names: set[str]) -> None:
         )
 
 
+def _identifier(path: Path) -> str:
+    """The model identifier of the FMU at ``path`` (its name if it has none)."""
+    cs = read_model_description(path).find("CoSimulation")
+    return (cs.get("modelIdentifier") if cs is not None else None) or path.stem
+
+
+def _controller_for(kind: str, controller_fmu: Path) -> Path:
+    """The controller FMU that runs ``kind``: ``controller_fmu``, or where that is the native
+    PulseController.fmu and the kind is not one of it, PulseControllerPython.fmu beside it.
+
+    Raises
+    ------
+    BuildError
+        If the native FMU cannot run ``kind`` and no PulseControllerPython.fmu lies beside it.
+    """
+    from papwc.fmubuild.fmus import controller_fmu_name
+
+    if not controller_fmu.is_file():
+        return controller_fmu  # refused by _check_fmu with the component's name
+    wanted = controller_fmu_name(kind)
+    if _identifier(controller_fmu) != "PulseController" or wanted == "PulseController":
+        return controller_fmu
+    python = controller_fmu.with_name(f"{wanted}.fmu")
+    if not python.is_file():
+        raise BuildError(f"cannot build ClosedLoop.ssp: kind {kind!r} is not in the native "
+                         f"{controller_fmu} (pwc, papwc, pid); it is in {python.name}, which "
+                         f"papwc build writes beside it: {python} does not exist")
+    return python
+
+
 def _number(value: float) -> str:
     """``value`` as an XML double that parses back to the same float."""
     return repr(float(value))
@@ -326,7 +359,8 @@ def build_closed_loop_ssp(
         ``[[controller]]`` table give the parameter bindings.
     plant_fmu, controller_fmu : Path
         ``FrictionPlant.fmu`` and ``PulseController.fmu``, copied into the
-        archive's ``resources/``.
+        archive's ``resources/``; for a kind the native PulseController.fmu does not
+        implement (exact, dual_loop), ``PulseControllerPython.fmu`` beside it.
     controller_index : int, optional
         Index (0-based) of the ``[[controller]]`` table; default: the first
         table of kind ``"papwc"`` (in ``scenarios/paper.toml``, PAPWC with
@@ -353,11 +387,13 @@ def build_closed_loop_ssp(
     if controller_index is None:
         controller_index = default_controller_index(scenario)
     parameters = closed_loop_parameters(scenario, controller_index)
+    controller_fmu = _controller_for(scenario.controllers[controller_index].kind, controller_fmu)
     fmus = {PLANT: plant_fmu, CONTROLLER: controller_fmu}
     for component, path in fmus.items():
         names = set(parameters[component]) | set(_CONNECTORS[component])
         _check_fmu(path, component, names)
-    sources = {PLANT: "resources/FrictionPlant.fmu", CONTROLLER: "resources/PulseController.fmu"}
+    sources = {PLANT: "resources/FrictionPlant.fmu",
+               CONTROLLER: f"resources/{_identifier(controller_fmu)}.fmu"}
     root = _ssd(scenario, controller_index, parameters, sources)
     ET.indent(root, space="  ")
     ssd_bytes = ET.tostring(root, encoding="UTF-8", xml_declaration=True)

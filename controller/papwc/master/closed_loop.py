@@ -260,8 +260,9 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
 
 
 def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuver,
-                   label: str = "", observers: Sequence[Observer] = ()) -> RunResult:
-    """Run a Python controller of ``settings`` against ``plant``, over every iteration.
+                   label: str = "", observers: Sequence[Observer] = (),
+                   library=None) -> RunResult:
+    """Run the controller of ``settings`` against ``plant``, over every iteration.
 
     Parameters
     ----------
@@ -276,6 +277,10 @@ def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuve
         The controller's name in the traces (default: its kind).
     observers : sequence of Observer
         Further observers (see :func:`run_closed_loop`).
+    library : NativeControllerLibrary, optional
+        The C controller (:class:`papwc.master.native_controller.NativeControllerLibrary`):
+        used for a kind it implements, the Python controller otherwise; the same numbers
+        either way. Default: the Python controller.
 
     Returns
     -------
@@ -296,7 +301,12 @@ def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuve
     >>> int(trace.column("pulses")[-1]), abs(0.01 - trace.column("x_meas")[-1]) <= 5e-7
     (5, True)
     """
-    controller = ControllerSlave(make_controller(settings, maneuver.T))
+    if library is None:
+        controller = ControllerSlave(make_controller(settings, maneuver.T))
+    else:
+        from papwc.master.native_controller import controller_slave
+
+        controller = controller_slave(settings, maneuver.T, library)
     return run_closed_loop(plant, controller, maneuver, settings, label, observers)
 
 

@@ -27,6 +27,7 @@ from ctypes import (
     c_void_p,
     cast,
 )
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
@@ -135,7 +136,10 @@ class FmuSlave:
     restart_input : str, optional
         An Integer input whose change starts a new run of the FMU with what it
         has learned (PulseController.fmu's ``maneuver``): :meth:`restart`
-        increments it instead of restoring the initial state.
+        increments it instead of restoring the initial state. The FMU's communication
+        points then go on from where the last run ended (FMI 2.0: each step starts where the
+        last ended; a native FMU refuses another point): the master's time plus the
+        length of the runs before.
     """
 
     #: Instances that returned fmi2Fatal, kept so that nothing frees them.
@@ -166,6 +170,10 @@ class FmuSlave:
         self._fatal = False
         self.restart_input = restart_input
         self._restarts = 0
+        #: The FMU's communication point is the master's t plus this (s): the runs before
+        #: a restart by ``restart_input``; the end of the last step, in the FMU's time.
+        self._t_shift = 0.0
+        self._t_end = 0.0
         # Everything that opens the file goes through papwc.master.archive: a
         # failure is one FmuError naming the file, and the unpacked copy is removed.
         if unzip_dir is None:
@@ -365,6 +373,23 @@ class FmuSlave:
                 if status > 1:
                     check("fmi2GetReal", status)
                 self.values = buf[:]
+        elif all(kind != "Boolean" for *_, kind in reads):
+            # Reals and Integers: each buffer read whole, then put in the watched order by one
+            # itemgetter (a controller's outputs: u and the estimates, the counts and codes)
+            order = [i for *_, positions, _ in reads for i in positions]
+            where = [0] * len(order)
+            for j, i in enumerate(order):
+                where[i] = j
+            arrange = itemgetter(*where) if len(where) > 1 else (lambda v: (v[0],))
+
+            def refresh() -> None:
+                read: list[Any] = []
+                for get, vr, n, buf, _, kind in reads:
+                    status = get(comp, vr, n, buf)
+                    if status > 1:
+                        check(f"fmi2Get{kind}", status)
+                    read += buf[:]
+                self.values = list(arrange(read))
         else:
             size = len(self._watched)
 
@@ -449,6 +474,7 @@ class FmuSlave:
             refuse invalid parameters that way).
         """
         self.time = float(start_time)
+        self._t_shift, self._t_end = 0.0, self.time
         self._forget_inputs()
         if self._entered:
             # FMI 2.0 initializes an instance once: a native FMU is reset; a pythonfmu FMU,
@@ -493,6 +519,7 @@ class FmuSlave:
         self._forget_inputs()
         if self.restart_input is not None:
             self.time = float(start_time)
+            self._t_shift = self._t_end - self.time
             self._restarts += 1
             base = int(self._start.get(self.restart_input, 0))
             self._set_now({self.restart_input: base + self._restarts})
@@ -500,6 +527,7 @@ class FmuSlave:
             return
         if self._snapshot is not None:
             self.time = float(start_time)
+            self._t_shift, self._t_end = 0.0, self.time
             before = self.log.count
             self._call("fmi2SetFMUstate", lambda: self._fmu.setFMUstate(self._snapshot))
             refused = _refusals(self.log.since(before))
@@ -517,10 +545,11 @@ class FmuSlave:
         if step_size.value != h:
             step_size.value = h
         t_c = self._t
-        t_c.value = t
+        t_c.value = t + self._t_shift
         status = self._do_step(self._c, t_c, step_size, 1)
         if status > 1:
             self._check("fmi2DoStep", status)
+        self._t_end = t_c.value + h
         self._refresh()
 
     def _free_snapshot(self) -> None:

@@ -33,7 +33,7 @@ from papwc.model.dynamics import STATE_FIELDS
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_OUTPUTS, PLANT_PARAMETERS
 
 __all__ = ["API_SYMBOL", "API_VERSION", "NativePlant", "NativePlantLibrary",
-           "NativePlantError", "plant_library"]
+           "NativePlantError", "api_table", "layout_struct", "plant_library"]
 
 #: The exported function that returns the table of the plant's functions.
 API_SYMBOL = "papwc_plant_api"
@@ -49,19 +49,20 @@ _COUNT_FIELDS = ("stick_draws", "noise_draws")
 _MSG_LEN = 512
 
 
-def _struct(name: str, fields: list[tuple[str, str, Any]]) -> type[ctypes.Structure]:
-    """A ctypes struct with ``fields`` (name, C type name, ctypes type), and its layout text."""
+def layout_struct(name: str, fields: list[tuple[str, str, Any]]) -> type[ctypes.Structure]:
+    """A ctypes struct with ``fields`` (name, C type name, ctypes type), and its layout text
+    (``"name:TYPE "`` per field, as a native binary's API table gives it)."""
     cls = type(name, (ctypes.Structure,), {"_fields_": [(n, t) for n, _, t in fields]})
     cls.layout = "".join(f"{n}:{c} " for n, c, _ in fields)
     return cls
 
 
 #: ``FpParams`` of plant_vars.h: one field per parameter, in the model layer's order.
-FpParams = _struct("FpParams", [(v.name, *_TYPES[v.type]) for v in PLANT_PARAMETERS])
+FpParams = layout_struct("FpParams", [(v.name, *_TYPES[v.type]) for v in PLANT_PARAMETERS])
 #: ``FpOutputs`` of plant_vars.h.
-FpOutputs = _struct("FpOutputs", [(v.name, *_TYPES[v.type]) for v in PLANT_OUTPUTS])
+FpOutputs = layout_struct("FpOutputs", [(v.name, *_TYPES[v.type]) for v in PLANT_OUTPUTS])
 #: ``FpState`` of plant.h: the fields of STATE_FIELDS.
-FpState = _struct("FpState", [(n, "FP_COUNT", ctypes.c_uint64) if n in _COUNT_FIELDS
+FpState = layout_struct("FpState", [(n, "FP_COUNT", ctypes.c_uint64) if n in _COUNT_FIELDS
                               else (n, "FP_REAL", ctypes.c_double) for n in STATE_FIELDS])
 
 _P_PARAMS, _P_STATE, _P_OUT = (ctypes.POINTER(FpParams), ctypes.POINTER(FpState),
@@ -94,6 +95,57 @@ class NativePlantError(Exception):
     """A binary does not provide the plant as this module reads it."""
 
 
+def api_table(path: Path, symbol: str, version: int, table: type[ctypes.Structure],
+              error: type[Exception], structs: tuple[tuple[str, Any, str, str], ...]
+              ) -> tuple[ctypes.CDLL, Any]:
+    """Load ``path`` and the table its exported ``symbol()`` returns, checked.
+
+    Parameters
+    ----------
+    path : Path
+        A native binary.
+    symbol : str
+        The exported function that returns a pointer to the table.
+    version : int
+        The table's ``version`` field this papwc reads.
+    table : ctypes.Structure subclass
+        The table's layout.
+    error : Exception subclass
+        Raised, with what is wrong, if the binary cannot be loaded, lacks the symbol or
+        differs in version or in the layout of a struct.
+    structs : tuple of (name, ctypes struct, size field, layout field)
+        Each struct the table describes: its ``sizeof`` and ``"name:TYPE "`` fields must be
+        the struct's (:func:`layout_struct`).
+
+    Returns
+    -------
+    (ctypes.CDLL, table)
+        The library (keep it: it keeps the binary loaded) and the table.
+    """
+    try:
+        lib = ctypes.CDLL(str(path))
+    except OSError as exc:
+        raise error(f"{path}: cannot be loaded: {exc}") from exc
+    try:
+        get_api = getattr(lib, symbol)
+    except AttributeError as exc:
+        raise error(f"{path}: exports no {symbol}") from exc
+    get_api.argtypes = []
+    get_api.restype = ctypes.POINTER(table)
+    api = get_api().contents
+    if api.version != version:
+        raise error(f"{path}: {symbol} version {api.version}, this papwc reads version "
+                    f"{version}")
+    for what, cls, size_field, layout_field in structs:
+        size = getattr(api, size_field)
+        text = (getattr(api, layout_field) or b"").decode("ascii", "replace")
+        if size != ctypes.sizeof(cls) or text != cls.layout:
+            raise error(f"{path}: its {what} ({size} bytes: {text.strip()}) is not the model "
+                        f"layer's ({ctypes.sizeof(cls)} bytes: {cls.layout.strip()}); rebuild "
+                        "the FMU (papwc build)")
+    return lib, api
+
+
 class NativePlantLibrary:
     """The plant's functions in a native FrictionPlant binary, checked against the model layer.
 
@@ -111,30 +163,10 @@ class NativePlantLibrary:
 
     def __init__(self, path: str | os.PathLike) -> None:
         self.path = Path(path)
-        try:
-            lib = ctypes.CDLL(str(self.path))
-        except OSError as exc:
-            raise NativePlantError(f"{self.path}: cannot be loaded: {exc}") from exc
-        try:
-            get_api = getattr(lib, API_SYMBOL)
-        except AttributeError as exc:
-            raise NativePlantError(f"{self.path}: exports no {API_SYMBOL}") from exc
-        get_api.argtypes = []
-        get_api.restype = ctypes.POINTER(_Api)
-        api = get_api().contents
-        if api.version != API_VERSION:
-            raise NativePlantError(f"{self.path}: {API_SYMBOL} version {api.version}, this "
-                                   f"papwc reads version {API_VERSION}")
-        for what, cls, size, layout in (
-                ("FpParams", FpParams, api.params_size, api.params),
-                ("FpState", FpState, api.state_size, api.state),
-                ("FpOutputs", FpOutputs, api.outputs_size, api.outputs)):
-            text = (layout or b"").decode("ascii", "replace")
-            if size != ctypes.sizeof(cls) or text != cls.layout:
-                raise NativePlantError(
-                    f"{self.path}: its {what} ({size} bytes: {text.strip()}) is not the model "
-                    f"layer's ({ctypes.sizeof(cls)} bytes: {cls.layout.strip()}); rebuild "
-                    "the FMU (papwc build)")
+        lib, api = api_table(self.path, API_SYMBOL, API_VERSION, _Api, NativePlantError, (
+            ("FpParams", FpParams, "params_size", "params"),
+            ("FpState", FpState, "state_size", "state"),
+            ("FpOutputs", FpOutputs, "outputs_size", "outputs")))
         self._lib = lib  # keeps the binary loaded while the table is used
         self.api = api
 

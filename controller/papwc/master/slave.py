@@ -36,7 +36,7 @@ from papwc.model.controller_settings import CONTROLLER_INPUTS, CONTROLLER_OUTPUT
 from papwc.model.dynamics import OUTPUTS, Plant, output_reader
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_PARAMETERS, PLANT_VARIABLES, plant_problems
 
-__all__ = ["ControllerSlave", "PhysicsSlave", "SignalSlave", "Slave"]
+__all__ = ["ControllerInputs", "ControllerSlave", "PhysicsSlave", "SignalSlave", "Slave"]
 
 
 class Slave(Protocol):
@@ -273,41 +273,22 @@ CONTROLLER_SLAVE_VARIABLES = {
 }
 
 
-class ControllerSlave(_WatchedAttributes):
-    """A Python controller (:class:`papwc.controllers.Controller`) as a slave.
+class ControllerInputs(_WatchedAttributes):
+    """What every controller slave of the master does with its inputs (x_meas, x_ref,
+    x_d_meas): start values applied at each (re)initialization, setters, ``u`` 0 after
+    initialization. A subclass gives the controller's outputs (:meth:`_path` of an output)
+    and the sample (``do_step``, ``restart``)."""
 
-    Like PulseController.fmu: ``do_step(t, h)`` samples the inputs ``x_meas``
-    and ``x_ref`` (m) present at ``t`` and sets ``u`` (N), the force to hold
-    over the next sample; the controller's :meth:`~papwc.controllers.Controller.outputs`
-    (the model layer's ``CONTROLLER_OUTPUTS``) and any further estimates (``m_hat``,
-    ...) are outputs. ``restart`` starts a new maneuver from rest with what the
-    controller learned. When the controller only counted a sample
-    (``idle_samples`` grew) the outputs are those of the sample before.
-    """
+    name: str
+    u: float
 
-    def __init__(self, controller: Controller, name: str = "controller") -> None:
-        self.name = name
-        self.controller = controller
+    def _init_inputs(self) -> None:
         self.x_meas = 0.0
         self.x_ref = 0.0
         self.x_d_meas = 0.0
         self.u = 0.0
         self._start: dict[str, float] = {}
-        self.out = SimpleNamespace(**controller.estimates())
-        self.out.__dict__.update(controller.outputs())
-        self._revision = controller.revision
         self._init_watch()
-
-    def variables(self) -> Mapping[str, str]:
-        """Causality of every variable."""
-        out = dict(CONTROLLER_SLAVE_VARIABLES)
-        out.update({name: "output" for name in vars(self.out) if name not in out})
-        return out
-
-    def _path(self, name: str) -> str:
-        if name in ("x_meas", "x_ref", "x_d_meas", "u"):
-            return name
-        return f"out.{name}"
 
     def set_start_values(self, values: Mapping[str, Any]) -> None:
         """Parameters and input start values, applied at every (re)initialization."""
@@ -330,6 +311,42 @@ class ControllerSlave(_WatchedAttributes):
             setattr(self, key, value)
         self.u = 0.0
         self._refresh()
+
+    def close(self) -> None:
+        """Nothing to release."""
+        pass
+
+
+class ControllerSlave(ControllerInputs):
+    """A Python controller (:class:`papwc.controllers.Controller`) as a slave.
+
+    Like PulseController.fmu: ``do_step(t, h)`` samples the inputs ``x_meas``
+    and ``x_ref`` (m) present at ``t`` and sets ``u`` (N), the force to hold
+    over the next sample; the controller's :meth:`~papwc.controllers.Controller.outputs`
+    (the model layer's ``CONTROLLER_OUTPUTS``) and any further estimates (``m_hat``,
+    ...) are outputs. ``restart`` starts a new maneuver from rest with what the
+    controller learned. When the controller only counted a sample
+    (``idle_samples`` grew) the outputs are those of the sample before.
+    """
+
+    def __init__(self, controller: Controller, name: str = "controller") -> None:
+        self.name = name
+        self.controller = controller
+        self.out = SimpleNamespace(**controller.estimates())
+        self.out.__dict__.update(controller.outputs())
+        self._revision = controller.revision
+        self._init_inputs()
+
+    def variables(self) -> Mapping[str, str]:
+        """Causality of every variable."""
+        out = dict(CONTROLLER_SLAVE_VARIABLES)
+        out.update({name: "output" for name in vars(self.out) if name not in out})
+        return out
+
+    def _path(self, name: str) -> str:
+        if name in ("x_meas", "x_ref", "x_d_meas", "u"):
+            return name
+        return f"out.{name}"
 
     def restart(self, start_time: float = 0.0) -> None:
         """A new maneuver from rest, keeping what the controller learned."""
@@ -357,10 +374,6 @@ class ControllerSlave(_WatchedAttributes):
             self._revision = controller.revision
         values.update(controller.outputs())
         self.values = list(self._read(self))
-
-    def close(self) -> None:
-        """Nothing to release."""
-        pass
 
 
 class SignalSlave(_WatchedAttributes):

@@ -35,6 +35,7 @@ __all__ = [
     "PULSE_CONTROLLER_VARIABLES",  # noqa: F822 (assembled on first use, see __getattr__)
     "REFERENCE_OFFSET",
     "SAMPLE_PERIOD",
+    "STEP_RTOL",
     "assemble_settings",
     "kind_code_variable",
     "fmu_parameters",
@@ -181,6 +182,9 @@ CONTROLLER_CONSTRAINTS: tuple[Constraint, ...] = (
 #: The sample period as a parameter of PulseController.fmu.
 SAMPLE_PERIOD = Variable("T", "Sample period: every communication step must be T", "s", 0.01,
                          min=1e-9, max=1e3)
+#: Relative tolerance of PulseController.fmu's check that a communication step is T (libcosim
+#: steps on a grid of whole nanoseconds).
+STEP_RTOL = 1e-9
 
 #: A fixed reference as a parameter of PulseController.fmu: the controller's reference is
 #: ``x_ref_offset + x_ref``. An SSP binds it (SSP 1.0 bindings set FMI 2.0 variables with

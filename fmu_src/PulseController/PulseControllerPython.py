@@ -1,4 +1,9 @@
-"""PulseController: the project's pulse controllers as an FMI 2.0 CS slave.
+"""PulseControllerPython: the project's controllers as an FMI 2.0 CS slave, in Python.
+
+Every controller kind of :mod:`papwc.controllers` (pwc, papwc, exact, pid, dual_loop), built
+with pythonfmu as ``PulseControllerPython.fmu``; it runs in the host's Python 3.10 or newer.
+The kinds pwc, papwc and pid are also in the native ``PulseController.fmu`` (the C controller
+of ``controller.c``, bit for bit the same numbers, no Python in the host).
 
 At every communication step ``doStep(t, T)`` the controller takes the measured
 position ``x_meas`` and the reference ``x_ref`` present at ``t``, and sets the
@@ -29,6 +34,7 @@ from papwc_pulse_controller.model.controller_settings import (
     CONTROLLER_CONSTRAINTS,
     CONTROLLER_SETTINGS,
     PULSE_CONTROLLER_VARIABLES,
+    STEP_RTOL,
     kind_from_code,
 )
 from papwc_pulse_controller.model.variables import switched_values
@@ -36,11 +42,8 @@ from pythonfmu import DefaultExperiment
 
 _isfinite = math.isfinite
 
-#: Relative tolerance of the check that the communication step equals T.
-STEP_RTOL = 1e-9
 
-
-class PulseController(CheckedSlave):
+class PulseControllerPython(CheckedSlave):
     """Adaptive pulse controller (PWC, PAPWC, exact, dual_loop; or the PID baseline) sampled at
     each step.
 
