@@ -2,15 +2,25 @@
 interrupted battery runs verbatim (it keeps --max-steps), SIGTERM stops a battery as Ctrl-C
 does (no worker traceback), ``papwc build --controller`` is 1-based in its refusals too, and
 ``reproduce --scenario`` of a scenario without PWC or PAPWC claims only the figures it
-wrote."""
+wrote.
+
+And those of issue 44 (the third round): ``--scheduler`` pointed at a peer that does not
+speak Dask, ``papwc run`` interrupted in its first controller, and the weak answers kept
+from earlier rounds.
+"""
 
 from __future__ import annotations
 
+import contextlib
+import http.server
 import os
 import signal
+import socket
 import subprocess
 import sys
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
@@ -148,3 +158,78 @@ def test_out_of_memory_names_the_flags_of_the_command(command, hint, monkeypatch
     assert main(argv) == 1
     assert capsys.readouterr().err.strip() == (
         f"papwc {command}: error: out of memory; lower the work asked for (e.g. {hint})")
+
+
+# --- issue 44 -----------------------------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def foreign_peer(kind: str) -> Iterator[int]:
+    """A server on 127.0.0.1 that is not a Dask scheduler (``"http"``: a web server;
+    ``"random"``: one that sends random bytes at once); yields its port, stopped after."""
+    if kind == "http":
+        class Quiet(http.server.BaseHTTPRequestHandler):
+            def log_message(self, *args) -> None:
+                pass
+
+        server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Quiet)
+        thread = threading.Thread(target=server.serve_forever, daemon=True)
+        thread.start()
+        try:
+            yield server.server_address[1]
+        finally:
+            server.shutdown()
+            server.server_close()
+            thread.join(10)
+        return
+    listener = socket.create_server(("127.0.0.1", 0))
+    stop = threading.Event()
+
+    def serve() -> None:
+        listener.settimeout(0.1)
+        while not stop.is_set():
+            try:
+                conn, _ = listener.accept()
+            except OSError:
+                continue
+            with conn, contextlib.suppress(OSError):
+                conn.sendall(os.urandom(4096))
+                conn.settimeout(2.0)
+                conn.recv(1 << 16)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield listener.getsockname()[1]
+    finally:
+        stop.set()
+        thread.join(10)
+        listener.close()
+
+
+@pytest.mark.dask
+@pytest.mark.parametrize("kind, words", [
+    ("http", "the peer accepted the connection but sent no Dask handshake within 3 s"),
+    ("random", "the peer does not speak Dask (its first bytes are b"),
+])
+def test_a_scheduler_that_is_not_dask_is_refused_within_the_timeout(
+        kind, words, tmp_path, friction_plant_fmu, capsys, monkeypatch) -> None:
+    """Issue 44: a web server held the battery for ever; random bytes made Dask's reader
+    allocate exabytes (an "out of memory" that was not papwc's) or raise a traceback."""
+    import papwc.battery.engines
+
+    monkeypatch.setattr(papwc.battery.engines, "CONNECT_TIMEOUT_S", 3.0)
+    battery = tmp_path / "b.toml"
+    battery.write_text(BATTERY)
+    out = tmp_path / "out"
+    with foreign_peer(kind) as port:
+        address = f"tcp://127.0.0.1:{port}"
+        start = time.monotonic()
+        code = main(["battery", str(battery), "--out", str(out), "--fmu",
+                     str(friction_plant_fmu), "--scheduler", address, "--quiet"])
+        seconds = time.monotonic() - start
+    err = capsys.readouterr().err
+    assert code == 2 and seconds < 3.0 + 5.0, (code, seconds)
+    assert err.count("\n") == 1 and err.startswith(f"papwc battery: error: --scheduler {address}: ")
+    assert words in err and "out of memory" not in err and "Traceback" not in err
+    assert not out.exists()  # refused before anything is written
