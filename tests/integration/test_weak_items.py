@@ -233,3 +233,25 @@ def test_a_scheduler_that_is_not_dask_is_refused_within_the_timeout(
     assert err.count("\n") == 1 and err.startswith(f"papwc battery: error: --scheduler {address}: ")
     assert words in err and "out of memory" not in err and "Traceback" not in err
     assert not out.exists()  # refused before anything is written
+
+
+@pytest.mark.slow
+def test_build_says_what_it_compiles_for_which_platform(tmp_path) -> None:
+    """Issue 44: ``papwc build`` printed nothing until it was done (minutes on a first
+    build). Off a terminal each step is a line on stderr as it starts; the paths on stdout
+    come as each file is written."""
+    done = subprocess.run([sys.executable, "-m", "papwc.cli", "build", "--out",
+                           str(tmp_path / "b")], capture_output=True, text=True, timeout=900,
+                          env={**os.environ, "PYTHONPATH": str(PROJECT / "controller")})
+    assert done.returncode == 0, done.stderr
+    err = done.stderr.splitlines()
+    for platform, target in (("linux64", "x86_64-linux-gnu.2.17"),
+                             ("win64", "x86_64-windows-gnu"), ("darwin64", "x86_64-macos"),
+                             ("darwin64", "aarch64-macos")):
+        assert (f"papwc build: compiling FrictionPlant.fmu's C sources for {platform} "
+                f"({target}) with zig") in err, err
+    assert "papwc build: building PulseController.fmu with pythonfmu" in err
+    assert err.index("papwc build: building FrictionPlant.fmu (C, compiled by zig)") < err.index(
+        "papwc build: building PulseController.fmu with pythonfmu")
+    assert done.stdout.splitlines() == [str(tmp_path / "b" / name) for name in (
+        "FrictionPlant.fmu", "PulseController.fmu", "PapwcTrivial.fmu", "ClosedLoop.ssp")]
