@@ -80,24 +80,28 @@ def release_plant(slave: Slave, fmu: str | os.PathLike | None,
 def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
                  progress: Callable[[RunResult], None] | None = None,
                  unzip_dir: str | os.PathLike | None = None,
-                 timeout: float | None = None) -> list[RunResult]:
+                 timeout: float | None = None,
+                 stopped: Callable[[RunResult], None] | None = None) -> list[RunResult]:
     """Run every controller of the scenario (each with a fresh plant instance).
 
     ``fmu`` is the plant FMU's path when ``plant`` is ``"fmu"`` (and
     ``unzip_dir`` an extracted copy of it, if there is one); ``progress`` is
     called with each controller's result as it finishes. With ``timeout`` (s),
     :class:`RunTimeout` is raised once the whole run has taken longer. Ctrl-C
-    raises KeyboardInterrupt between two steps (:func:`deferred_interrupt`).
+    raises KeyboardInterrupt between two steps (:func:`deferred_interrupt`), after
+    ``stopped`` was given what the controller under way had computed (its traces, the
+    last one cut; see :func:`papwc.master.run_closed_loop`).
     """
     results = []
     deadline = None if timeout is None else time.monotonic() + timeout
+    keep = {} if stopped is None else {"stopped": stopped}
     with deferred_interrupt():
         for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
             slave = make_plant(scenario, plant, fmu, unzip_dir)
             guard = StepGuard(deadline, timeout)
             try:
                 results.append(run_controller(slave, settings, scenario.maneuver, label,
-                                              observers=[guard]))
+                                              observers=[guard], **keep))
             finally:
                 release_plant(slave, fmu, unzip_dir)
             if progress is not None:

@@ -12,6 +12,7 @@ from earlier rounds.
 from __future__ import annotations
 
 import contextlib
+import csv
 import http.server
 import os
 import signal
@@ -255,3 +256,45 @@ def test_build_says_what_it_compiles_for_which_platform(tmp_path) -> None:
         "papwc build: building PulseController.fmu with pythonfmu")
     assert done.stdout.splitlines() == [str(tmp_path / "b" / name) for name in (
         "FrictionPlant.fmu", "PulseController.fmu", "PapwcTrivial.fmu", "ClosedLoop.ssp")]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum, code, what", [(signal.SIGINT, 130, "interrupted (Ctrl-C)"),
+                                                 (signal.SIGTERM, 143, "terminated (SIGTERM)")],
+                         ids=["ctrl-c", "sigterm"])
+def test_a_run_stopped_in_its_first_controller_keeps_its_trace(
+        signum, code, what, tmp_path, friction_plant_fmu) -> None:
+    """Issue 44: Ctrl-C during the first controller of ``papwc run`` kept nothing of it
+    although seconds of trace had been computed (cosim keeps every row it computed). The
+    trace is kept, cut short where the run stopped, and INCOMPLETE says so."""
+    scenario = tmp_path / "long.toml"
+    scenario.write_text(scenario_toml("long", maneuver={"x_ref": 0.01, "T": 0.01,
+                                                         "duration": 5000.0, "iterations": 1},
+                                      controllers=[{"kind": "pwc", "label": "pwc", "tolerance": 0.0}]))
+    out = tmp_path / "out"
+    process = subprocess.Popen(
+        [sys.executable, "-m", "papwc.cli", "run", str(scenario), "--out", str(out), "--fmu",
+         str(friction_plant_fmu), "--max-steps", "1000000"], stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True,
+        env={**os.environ, "PYTHONPATH": str(PROJECT / "controller")},
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    deadline = time.monotonic() + 120
+    while not (out / "INCOMPLETE").is_file():
+        assert process.poll() is None and time.monotonic() < deadline
+        time.sleep(0.05)
+    time.sleep(1.5)  # into the first (and only) controller's steps
+    process.send_signal(signum)
+    _, err = process.communicate(timeout=120)
+    assert process.returncode == code, err
+    assert "Traceback" not in err
+    trace = out / "trace_pwc_it1.csv"
+    with open(trace, newline="") as f:
+        rows = list(csv.DictReader(f))
+    t_cut = float(rows[-1]["t"])
+    assert 0.0 < t_cut < 5000.0 and len(rows) == round(t_cut / 0.01) + 1
+    assert [float(r["t"]) for r in rows[:3]] == [0.0, 0.01, 0.02]
+    assert rows[-1]["u"] == "nan"  # the state reached last, as a finished trace ends
+    incomplete = (out / "INCOMPLETE").read_text()
+    assert (f"- controller pwc in part: trace_pwc_it1.csv (cut short at t = {t_cut!r} s: "
+            f"{what})") in incomplete, incomplete
+    assert "(pwc in part)" in err and not (out / "summary.csv").exists()

@@ -17,8 +17,10 @@ EPILOG = """examples:
 
 each controller's traces and summary rows are written as it finishes; until
 everything is written (and after Ctrl-C or an error) DIR holds a file
-INCOMPLETE saying what is missing. A new run into DIR first removes what an
-earlier run wrote there (summary.csv, trace_*_it*.csv, the plots), nothing else.
+INCOMPLETE saying what is missing. Ctrl-C (or SIGTERM) keeps the traces of the
+controller under way too, the last one cut short (INCOMPLETE says where). A new
+run into DIR first removes what an earlier run wrote there (summary.csv,
+trace_*_it*.csv, the plots), nothing else.
 exit code: 0 ok, 1 a controller's run failed or a file cannot be written,
 2 the scenario file or an option is wrong, 130 interrupted (Ctrl-C).
 """
@@ -73,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     folder = ResultsFolder(out, scenario.labels, warnings, scenario=scenario)
     folder.start()
     results = run_into_folder(folder, lambda progress: run_scenario(
-        scenario, args.plant, fmu, progress=progress))
+        scenario, args.plant, fmu, progress=progress, stopped=folder.add_cut))
     rows = run_into_folder(folder, lambda progress: folder.finish())
     print(format_table(rows))
     print(f"wrote {out / 'summary.csv'}, {len(rows)} rows, pulses.csv, traces and plots in "

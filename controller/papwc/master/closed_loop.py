@@ -16,12 +16,13 @@ maneuver's measurement noise as a manipulator and a trace observer. Timing
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from papwc.controllers import CONTROLLER_KINDS, Controller, make_controller
 from papwc.controllers.settings import ControllerSettings
 from papwc.errors import FmuError
+from papwc.interrupts import Terminated
 from papwc.master.algorithm import FixedStepAlgorithm
 from papwc.master.execution import Execution
 from papwc.master.manipulators import MeasurementNoise
@@ -159,14 +160,18 @@ class ClosedLoop:
 
 def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
                     settings: ControllerSettings | None = None, label: str = "",
-                    observers: Sequence[Observer] = ()) -> RunResult:
+                    observers: Sequence[Observer] = (),
+                    stopped: Callable[[RunResult], None] | None = None) -> RunResult:
     """Run all iterations of the maneuver; what the controller learns carries over.
 
     ``plant`` must already have its parameters as start values. The first
     iteration initializes both slaves, later ones restart them. A failure
     stops the run and is kept in ``result.error`` (``"iteration N: ..."``); the
     traces recorded until then are kept. ``observers`` are added to the
-    execution (see :class:`ClosedLoop`); what they raise ends the run.
+    execution (see :class:`ClosedLoop`); what they raise ends the run. When Ctrl-C or
+    SIGTERM (a KeyboardInterrupt, raised between two steps) stops it, ``stopped`` is
+    called first with what was computed: the finished iterations' traces and the cut one
+    (its ``error`` saying where it was cut), ``result.error`` set.
     """
     settings = settings if settings is not None else ControllerSettings()
     result = RunResult(label or settings.kind, settings)
@@ -175,7 +180,20 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
                       motor_encoder=kind is not None and kind.reads_x_d_meas,
                       observers=observers)
     for number in range(1, maneuver.iterations + 1):
-        trace = loop.iteration(number)
+        try:
+            trace = loop.iteration(number)
+        except KeyboardInterrupt as stop:
+            if stopped is not None:
+                cut = loop.observer.cut()
+                what = ("terminated (SIGTERM)" if isinstance(stop, Terminated)
+                        else "interrupted (Ctrl-C)")
+                t = cut.columns["t"][-1] if len(cut) else 0.0
+                cut.error = f"cut short at t = {t!r} s: {what}"
+                if len(cut):
+                    result.traces.append(cut)
+                result.error = f"iteration {number}: {cut.error}"
+                stopped(result)
+            raise
         if trace.error and not len(trace):
             result.error = f"iteration {number}: {trace.error}"
             return result
@@ -187,10 +205,11 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
 
 
 def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuver,
-                   label: str = "", observers: Sequence[Observer] = ()) -> RunResult:
+                   label: str = "", observers: Sequence[Observer] = (),
+                   stopped: Callable[[RunResult], None] | None = None) -> RunResult:
     """Run a Python controller of ``settings`` against ``plant`` (see :func:`run_closed_loop`)."""
     controller = ControllerSlave(make_controller(settings, maneuver.T))
-    return run_closed_loop(plant, controller, maneuver, settings, label, observers)
+    return run_closed_loop(plant, controller, maneuver, settings, label, observers, stopped)
 
 
 def run_iteration(plant: Slave, controller: Controller | Slave, maneuver: Maneuver,

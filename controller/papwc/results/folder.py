@@ -5,7 +5,9 @@ controller's traces, then its rows of ``summary.csv`` (and of ``pulses.csv``:
 every pulse with its no-runaway bound), as the controller finishes (every file
 atomically), and the plots at the end. While a run is under way, and after one
 that was interrupted or failed, the folder holds a file ``INCOMPLETE`` that
-says what is missing; it is removed once everything is written. A new run into
+says what is missing; it is removed once everything is written. A controller that
+Ctrl-C or SIGTERM stops keeps the traces it computed (:meth:`ResultsFolder.add_cut`),
+the last one cut short, as ``INCOMPLETE`` says (it has no summary rows). A new run into
 a used folder first removes the files an earlier run wrote there
 (``summary.csv``, ``pulses.csv``, ``trace_*_it*.csv``, the plots,
 ``INCOMPLETE``), nothing else.
@@ -217,6 +219,21 @@ class ResultsFolder:
         self._partial = None
         self.results.append(result)
         self._mark(f"{self.what} is under way or was stopped")
+
+    def add_cut(self, result: RunResult) -> None:
+        """Write the traces of a controller that Ctrl-C or SIGTERM stopped (the last cut
+        short: ``result.error`` says where); ``INCOMPLETE`` names them. No summary rows: the
+        controller did not finish. Never raises (the run is being stopped)."""
+        parts: list[str] = []
+        self._partial = (result.label, parts)
+        try:
+            for tr in result.traces:
+                name = trace_name(result.label, tr.iteration)
+                tr.to_csv(self.out / name)
+                self.written.append(name)
+                parts.append(f"{name} ({tr.error})" if tr.error else name)
+        except (OSError, KeyboardInterrupt):  # a second Ctrl-C, a full disk: keep what is
+            pass
 
     def finish(self, plots: bool = True) -> list[dict]:
         """Write the plots and remove ``INCOMPLETE``; return the summary rows."""
