@@ -134,7 +134,7 @@ def read_log(path: str | os.PathLike, columns: Columns = Columns()) -> Log:
         even, too few or too many rows.
     """
     path = Path(path)
-    text = read_input_text(path, "log", "CSV", LogError, encoding="utf-8-sig",
+    text = read_input_text(path, "log", "CSV", LogError,
                            too_large=f"a log has at most {MAX_LOG_ROWS} rows")
     return parse_log(text, str(path), columns)
 
