@@ -33,13 +33,29 @@ def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> P
             raise FmuError(f"plant FMU {str(path)!r} {what}")
         from papwc.master.fmu import check_fmu
 
-        check_fmu(path, where=f"plant FMU {str(path)!r}")
+        where = f"plant FMU {str(path)!r}"
+        _check_plant_variables(check_fmu(path, where=where), where)
         return path
     from papwc.fmubuild.fmus import current_fmu
 
     refuse_link(Path(out) / "fmu")  # a folder the command fills is not followed
     return current_fmu("FrictionPlant", Path(out) / "fmu")
 
+
+
+def _check_plant_variables(md, where: str) -> None:
+    """Refuse (FmuError) an FMU that is not a plant the master can close the loop on: a
+    Real input ``u`` (the force) and the Real outputs every trace records."""
+    from papwc.master.trace import REQUIRED_PLANT_COLUMNS
+
+    kinds = {v.name: (v.causality, v.type) for v in md.modelVariables}
+    wanted = [("u", "input")] + [(name, "output") for name in REQUIRED_PLANT_COLUMNS]
+    missing = [f"{name} ({causality})" for name, causality in wanted
+               if kinds.get(name) != (causality, "Real")]
+    if missing:
+        raise FmuError(f"{where}: not a plant FMU: it has no Real {', '.join(missing)} (the "
+                       f"model is {md.modelName}); give FrictionPlant.fmu (papwc build) or "
+                       "another plant with a force input u and position outputs x, v, x_meas")
 
 
 def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,

@@ -270,7 +270,8 @@ def test_a_run_stopped_in_its_first_controller_keeps_its_trace(
     scenario = tmp_path / "long.toml"
     scenario.write_text(scenario_toml("long", maneuver={"x_ref": 0.01, "T": 0.01,
                                                          "duration": 5000.0, "iterations": 1},
-                                      controllers=[{"kind": "pwc", "label": "pwc", "tolerance": 0.0}]))
+                                      controllers=[{"kind": "pwc", "label": "pwc",
+                                                    "tolerance": 0.0}]))
     out = tmp_path / "out"
     process = subprocess.Popen(
         [sys.executable, "-m", "papwc.cli", "run", str(scenario), "--out", str(out), "--fmu",
@@ -298,3 +299,45 @@ def test_a_run_stopped_in_its_first_controller_keeps_its_trace(
     assert (f"- controller pwc in part: trace_pwc_it1.csv (cut short at t = {t_cut!r} s: "
             f"{what})") in incomplete, incomplete
     assert "(pwc in part)" in err and not (out / "summary.csv").exists()
+
+
+def test_a_controller_fmu_given_as_the_plant_is_refused_up_front(
+        tmp_path, pulse_controller_fmu, capsys) -> None:
+    """Issue 44: PulseController.fmu as a battery's --fmu was not checked up front: every
+    run failed."""
+    battery = tmp_path / "b.toml"
+    battery.write_text(BATTERY)
+    out = tmp_path / "out"
+    assert main(["battery", str(battery), "--out", str(out), "--fmu", str(pulse_controller_fmu),
+                 "--workers", "1", "--quiet"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert (f"papwc battery: error: plant FMU {str(pulse_controller_fmu)!r}: not a plant FMU: "
+            "it has no Real u (input), x (output), v (output), x_meas (output) (the model is "
+            "PulseController); give FrictionPlant.fmu") in err, err
+    assert not out.exists()
+
+
+def test_an_fmu_given_with_the_physics_plant_is_refused(tmp_path, capsys) -> None:
+    """Issue 44: run --plant physics --fmu /nope.fmu ran (rc 0), --fmu silently ignored."""
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(GOOD)
+    out = tmp_path / "out"
+    assert main(["run", str(scenario), "--plant", "physics", "--fmu", "/nope.fmu", "--out",
+                 str(out)]) == 2
+    assert capsys.readouterr().err == (
+        "papwc run: error: --fmu /nope.fmu: --plant physics runs the in-process physics and "
+        "loads no FMU; give --fmu with --plant fmu (the default) only\n")
+    assert not out.exists()
+
+
+def test_a_closed_standard_output_is_an_error_not_a_silent_success() -> None:
+    """Issue 44: ``papwc hostenv >&-`` gave rc 0 having written nothing (Python sets
+    sys.stdout to None and print() then writes nothing)."""
+    done = subprocess.run([sys.executable, "-m", "papwc.cli", "hostenv"],
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                          timeout=120, preexec_fn=lambda: os.close(1),
+                          env={**os.environ, "PYTHONPATH": str(PROJECT / "controller")})
+    assert done.returncode == 1
+    assert done.stderr == ("papwc hostenv: error: cannot write to standard output: it is closed "
+                           "(the command was started with >&-)\n")

@@ -63,6 +63,11 @@ def run(args: argparse.Namespace) -> int:
     from papwc.scenario import load_scenario
     from papwc.scenario_run import ensure_plant_fmu, run_scenario
 
+    if args.plant == "physics" and args.fmu is not None:
+        from papwc.errors import PapwcError
+
+        raise PapwcError(f"--fmu {args.fmu}: --plant physics runs the in-process physics and "
+                         "loads no FMU; give --fmu with --plant fmu (the default) only")
     scenario = load_scenario(args.scenario)
     m = scenario.maneuver
     check_steps(str(args.scenario), len(scenario.controllers), m.iterations, m.duration, m.T,
