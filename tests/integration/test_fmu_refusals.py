@@ -251,8 +251,10 @@ BUILDS = [("friction_plant_unzipped", FMI2_ERROR), ("pythonfmu_plant_unzipped", 
 
 
 @pytest.mark.parametrize("build, status", BUILDS, ids=["native", "pythonfmu"])
-def test_a_step_past_the_defined_stop_time_is_refused(build, status, request, capfd) -> None:
+def test_a_step_past_the_defined_stop_time_is_refused(build, status, request, capfd,
+                                                      monkeypatch) -> None:
     """Issue 44: with stopTimeDefined, stop 0.05 s, doStep(0, 1.0) returned fmi2OK."""
+    monkeypatch.setenv("PAPWC_FMU_STDERR", "1")  # (papwc cosim and identify set it to 0)
     unzipped = request.getfixturevalue(build)
     fmu = FmuInstance(unzipped, "plant")
     fmu.fmu.setupExperiment(startTime=0.0, stopTime=0.05)
@@ -293,10 +295,11 @@ def test_a_stop_time_before_the_start_time_is_refused(build, request) -> None:
 
 
 @pytest.mark.parametrize("build", [b for b, _ in BUILDS], ids=["native", "pythonfmu"])
-def test_no_state_of_an_instance_whose_initialization_was_refused(build, request,
-                                                                   capfd) -> None:
+def test_no_state_of_an_instance_whose_initialization_was_refused(build, request, capfd,
+                                                                   monkeypatch) -> None:
     """Issue 44: a state taken from an instance whose initialization was refused was
     accepted by getFMUstate and setFMUstate, and the next doStep failed with no message."""
+    monkeypatch.setenv("PAPWC_FMU_STDERR", "1")
     unzipped = request.getfixturevalue(build)
     bad = FmuInstance(unzipped, "bad", logging=False)
     bad.fmu.setupExperiment(startTime=0.0)
@@ -327,9 +330,11 @@ def test_no_state_of_an_instance_whose_initialization_was_refused(build, request
 
 
 @pytest.mark.parametrize("build", [b for b, _ in BUILDS], ids=["native", "pythonfmu"])
-def test_a_step_after_a_state_of_initialization_mode_says_why(build, request, capfd) -> None:
+def test_a_step_after_a_state_of_initialization_mode_says_why(build, request, capfd,
+                                                              monkeypatch) -> None:
     """A state taken in initialization mode (before it ended) and set into a stepping
     instance: the next doStep is refused and says so on stderr, logging off or not."""
+    monkeypatch.setenv("PAPWC_FMU_STDERR", "1")
     unzipped = request.getfixturevalue(build)
     early = FmuInstance(unzipped, "early")
     early.fmu.setupExperiment(startTime=0.0)

@@ -134,6 +134,8 @@ class ResultsFolder:
         self.written: list[str] = []
         #: The controller being written and what of it is on disk (until it all is).
         self._partial: tuple[str, list[str]] | None = None
+        #: The controller a stop cut short and its traces on disk (:meth:`add_cut`).
+        self._cut: tuple[str, list[str]] | None = None
 
     def start(self) -> None:
         """Create and lock the folder, remove what an earlier run wrote there, mark it
@@ -179,7 +181,7 @@ class ResultsFolder:
 
     def _missing(self) -> list[str]:
         done = {r.label for r in self.results}
-        part = self._partial[0] if self._partial is not None and self._partial[1] else None
+        part = next((p[0] for p in (self._partial, self._cut) if p is not None and p[1]), None)
         return ([f"controller {label} (" + ("the rest of its files" if label == part else
                                             f"traces and {self._rows_written}") + ")"
                  for label in self.labels if label not in done]
@@ -188,9 +190,10 @@ class ResultsFolder:
     def _mark(self, reason: str) -> None:
         done = [f"controller {r.label}: {len(r.traces)} trace(s) and {self._rows_written}"
                 for r in self.results]
-        if self._partial is not None and self._partial[1]:
-            label, parts = self._partial
-            done.append(f"controller {label} in part: {', '.join(parts)}")
+        for partial in (self._partial, self._cut):
+            if partial is not None and partial[1]:
+                label, parts = partial
+                done.append(f"controller {label} in part: {', '.join(parts)}")
         text = [f"This folder is incomplete: {reason}.", ""]
         text += ["Written:"] + [f"- {d}" for d in done] if done else ["Written: nothing yet."]
         text += ["", "Missing:"] + [f"- {m}" for m in self._missing()] + [""]
@@ -225,7 +228,7 @@ class ResultsFolder:
         short: ``result.error`` says where); ``INCOMPLETE`` names them. No summary rows: the
         controller did not finish. Never raises (the run is being stopped)."""
         parts: list[str] = []
-        self._partial = (result.label, parts)
+        self._cut = (result.label, parts)
         try:
             for tr in result.traces:
                 name = trace_name(result.label, tr.iteration)
@@ -262,10 +265,13 @@ class ResultsFolder:
         missing = [label for label in self.labels if label not in kept]
         partial = (f" ({self._partial[0]} in part)" if self._partial is not None
                    and self._partial[1] else "")
+        cut = (f"; the traces of {self._cut[0]} until the stop are kept" if self._cut is not None
+               and self._cut[1] else "")
         return (f"kept in {self.out}: "
                 + (f"the results of {', '.join(kept)}" if kept else "no finished controller")
                 + partial
                 + (f"; missing: {', '.join(missing)}" if missing else "")
+                + cut
                 + f"; the plots were not written{marked}")
 
 
