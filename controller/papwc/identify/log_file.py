@@ -188,12 +188,11 @@ def parse_log(text: str, source: str, columns: Columns = Columns()) -> Log:
             raise LogError(f"{source}, line 1: column {name!r} is named twice (fields "
                            f"{seen[name] + 1} and {i + 1}); each column needs its own name")
         seen[name] = i
-    columns = columns.resolved(header)
-    if columns.position not in header and columns.position == POSITION_COLUMNS[0] and (
-            POSITION_COLUMNS[1] not in header):
+    if columns.position is None and not set(POSITION_COLUMNS) & set(header):
         raise LogError(f"{source}, line 1: no column 'x_meas' or 'x' (position); the columns "
                        "are " + ", ".join(repr(n) for n in header)
                        + "; name the column with the option for the position")
+    columns = columns.resolved(header)
     index = {}
     for what, name in columns.needed():
         if name not in header:
