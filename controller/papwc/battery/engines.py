@@ -215,6 +215,12 @@ def check_scheduler(address: str, timeout: float | None = None) -> None:
     retried until ``timeout`` (s, default :data:`CONNECT_TIMEOUT_S`), as Dask does.
     """
     timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+    try:
+        import msgpack  # noqa: F401 - what a Dask greeting is read with
+        from distributed.protocol.utils import unpack_frames  # noqa: F401
+    except ImportError as exc:
+        raise BatteryError("--scheduler needs dask[distributed]: pip install "
+                           "'papwc[dask]'") from exc
     scheme, _, rest = address.rpartition("://")
     if scheme not in ("", "tcp"):
         return
