@@ -38,6 +38,7 @@ from papwc.master import (
     run_controller,
 )
 from papwc.model.controller_settings import fmu_parameters
+from papwc.model.plant import ACCELERATION_MAX, DAMPING_RATE_MAX, MODE_FREQUENCY_MAX
 from papwc.model.stickslip import simulate
 
 #: The plant of the paper's Table 1 (SI units), and as a scenario file's table.
@@ -88,6 +89,50 @@ def _realism_pulse_controllers() -> dict[str, dict[str, Any]]:
 
 #: The settings of the pulse controllers of scenarios/realism.toml (pwc, papwc, exact).
 REALISM_SETTINGS = _realism_pulse_controllers()
+
+
+#: Relative margin a hypothesis strategy keeps from a bound it derives from values it drew:
+#: a bound computed in floating point lands an ulp or so either side of the exact one (issue
+#: 44: ``m = c / DAMPING_RATE_MAX`` gave ``c/m = 10000.000000000002``, which the plant rightly
+#: refuses), so a strategy draws within the bound by this margin, never at it.
+BOUND_MARGIN = 1e-9
+
+
+def inside_max(bound: float) -> float:
+    """The largest value a strategy draws under the derived upper bound ``bound`` (> 0)."""
+    return bound * (1.0 - BOUND_MARGIN)
+
+
+def inside_min(bound: float) -> float:
+    """The smallest value a strategy draws over the derived lower bound ``bound`` (> 0)."""
+    return bound * (1.0 + BOUND_MARGIN)
+
+
+# The integrated plant's bounds between parameters (papwc.model.plant), as the strategies
+# derive them from values they drew: each with its margin.
+
+
+def lowest_integrated_mass(f_s: float, c: float) -> float:
+    """The smallest mass, kg, of an integrated plant with breakaway force ``f_s`` (N) and
+    damping ``c`` (N.s/m): ``f_s/m <= ACCELERATION_MAX`` and ``c/m <= DAMPING_RATE_MAX``."""
+    return inside_min(max(f_s / ACCELERATION_MAX, c / DAMPING_RATE_MAX))
+
+
+def highest_damping(m: float) -> float:
+    """The largest damping ``c``, N.s/m, of an integrated plant of mass ``m`` (kg)."""
+    return inside_max(m * DAMPING_RATE_MAX)
+
+
+def highest_mode_stiffness(m: float, m_d: float = math.inf) -> float:
+    """The largest stiffness, N/m, whose mode is at most MODE_FREQUENCY_MAX: the coupling
+    ``k_t`` of a flexible drive of motor mass ``m_d`` (kg), or LuGre's ``sigma_0``
+    (``m_d`` infinite)."""
+    return inside_max((2.0 * math.pi * MODE_FREQUENCY_MAX) ** 2 / (1.0 / m + 1.0 / m_d))
+
+
+def highest_coupling_damping(m: float, m_d: float) -> float:
+    """The largest coupling damping ``c_t``, N.s/m, of a flexible drive."""
+    return inside_max(DAMPING_RATE_MAX / (1.0 / m + 1.0 / m_d))
 
 
 def table_1(**changes: Any) -> dict[str, Any]:

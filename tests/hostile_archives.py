@@ -3,6 +3,8 @@ which papwc opens every archive, :mod:`papwc.master.archive`)."""
 
 from __future__ import annotations
 
+import re
+import stat
 import struct
 import zipfile
 from collections.abc import Callable
@@ -60,6 +62,26 @@ def _corrupt(path: Path, member: str) -> Path:
     return path
 
 
+def _first(src: Path, target: Path, first: list[tuple[zipfile.ZipInfo | str, bytes]],
+           keep: Callable[[str], bool] = lambda name: True) -> Path:
+    """A copy of ``src`` with the members ``first`` written before its own."""
+    with zipfile.ZipFile(src) as a, zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as b:
+        for info, data in first:
+            b.writestr(info, data)
+        for info in a.infolist():
+            if keep(info.filename):
+                b.writestr(info.filename, a.read(info.filename))
+    return target
+
+
+def _symlink(name: str) -> zipfile.ZipInfo:
+    """A member that is a symbolic link (as ``zip --symlinks`` stores one on Unix)."""
+    info = zipfile.ZipInfo(name)
+    info.create_system = 3
+    info.external_attr = (stat.S_IFLNK | 0o777) << 16
+    return info
+
+
 def _library(fmu: Path) -> str:
     with zipfile.ZipFile(fmu) as z:
         return next(n for n in z.namelist() if n.startswith("binaries/linux64/"))
@@ -78,6 +100,12 @@ KINDS = {
     "not_a_zip": "not a zip archive",
     "no_model_description": "modelDescription.xml",
     "path_outside": "leaves the folder",
+    # issue 44
+    "symlink_member": "is a symbolic link; an archive is read as regular files and folders",
+    "symlink_folder": "member 'documentation' is a symbolic link",
+    "file_and_folder": "(a file and a folder of one name)",
+    "guid_mismatch": "fmi2Instantiate refused: GUID {00000000-0000-0000-0000-000000000000} is "
+                     "not this FMU's",
 }
 
 
@@ -125,4 +153,17 @@ def damage(fmu: Path, kind: str, target: Path) -> Path:
         return rezip(fmu, target, lambda n: n != "modelDescription.xml")
     if kind == "path_outside":
         return rezip(fmu, target, extra={"../../escaped.txt": b"out"})
+    if kind == "symlink_member":  # the library a link to a file of the host
+        return _first(fmu, target, [(_symlink(library), b"/etc/passwd")],
+                      keep=lambda n: n != library)
+    if kind == "symlink_folder":  # a folder a link elsewhere, members unpacked through it
+        return _first(fmu, target, [(_symlink("documentation"), b"/tmp")])
+    if kind == "file_and_folder":  # a file named as the folder of other members
+        return _first(fmu, target, [("documentation", b"a file")])
+    if kind == "guid_mismatch":  # the model description's GUID is not the binary's
+        with zipfile.ZipFile(fmu) as z:
+            xml = z.read("modelDescription.xml")
+        xml = re.sub(rb'guid="[^"]*"', b'guid="{00000000-0000-0000-0000-000000000000}"', xml,
+                     count=1)
+        return rezip(fmu, target, replace={"modelDescription.xml": xml})
     raise ValueError(kind)

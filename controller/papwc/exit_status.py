@@ -26,12 +26,12 @@ def run_command(name: str, run: Callable[[], int | None], memory_hint: str | Non
     ``SystemExit`` (argparse's refusals) passes through.
     """
     stdout = sys.stdout
-    if stdout is not None:
-        sys.stdout = _Stdout(stdout)
+    # Standard output closed when the process started (``>&-``): Python sets sys.stdout to
+    # None and print() then writes nothing, silently; writing it fails here instead.
+    sys.stdout = _Stdout(stdout if stdout is not None else _Closed())
     try:
         code = int(run() or 0)
-        if sys.stdout is not None:
-            sys.stdout.flush()
+        sys.stdout.flush()
         return code
     except PapwcError as exc:
         _error(name, str(exc))
@@ -60,6 +60,21 @@ def run_command(name: str, run: Callable[[], int | None], memory_hint: str | Non
 
 class _StdoutError(OSError):
     """Writing standard output failed (a closed pipe, a full device)."""
+
+
+class _Closed:
+    """Standard output that was closed before the process started: every write fails."""
+
+    def write(self, text: str) -> int:
+        import errno
+
+        raise OSError(errno.EBADF, "it is closed (the command was started with >&-)")
+
+    def flush(self) -> None:
+        """Nothing is held."""
+
+    def fileno(self) -> int:
+        raise ValueError("standard output is closed")
 
 
 class _Stdout:

@@ -114,7 +114,7 @@ def input_path_problem(path: Path) -> str | None:
 
 
 def read_input_text(path: str | os.PathLike, what: str, form: str, error: type[Exception],
-                    too_large: str = "", encoding: str = "utf-8") -> str:
+                    too_large: str = "", encoding: str = "utf-8-sig") -> str:
     """The text of the input file at ``path`` (a scenario, a battery, a log).
 
     Parameters
@@ -131,7 +131,8 @@ def read_input_text(path: str | os.PathLike, what: str, form: str, error: type[E
         What a file larger than :data:`MAX_INPUT_BYTES` is told besides its size
         (default: that it is not a ``what`` file).
     encoding : str
-        ``"utf-8"``, or ``"utf-8-sig"`` to drop a byte-order mark.
+        ``"utf-8-sig"`` (default: UTF-8, a byte-order mark that an editor put first
+        dropped), or ``"utf-8"`` to keep one.
 
     Raises
     ------

@@ -33,7 +33,8 @@ def ensure_plant_fmu(fmu: str | os.PathLike | None, out: str | os.PathLike) -> P
             raise FmuError(f"plant FMU {str(path)!r} {what}")
         from papwc.master.fmu import check_fmu
 
-        check_fmu(path, where=f"plant FMU {str(path)!r}")
+        where = f"plant FMU {str(path)!r}"
+        _check_plant_variables(check_fmu(path, where=where), where)
         return path
     from papwc.fmubuild.fmus import current_fmu
 
@@ -81,6 +82,21 @@ def controller_library(controllers: str, out: str | os.PathLike):
     return fmu_controller_library(controller_fmu(controllers, out))
 
 
+def _check_plant_variables(md, where: str) -> None:
+    """Refuse (FmuError) an FMU that is not a plant the master can close the loop on: a
+    Real input ``u`` (the force) and the Real outputs every trace records."""
+    from papwc.master.trace import REQUIRED_PLANT_COLUMNS
+
+    kinds = {v.name: (v.causality, v.type) for v in md.modelVariables}
+    wanted = [("u", "input")] + [(name, "output") for name in REQUIRED_PLANT_COLUMNS]
+    missing = [f"{name} ({causality})" for name, causality in wanted
+               if kinds.get(name) != (causality, "Real")]
+    if missing:
+        raise FmuError(f"{where}: not a plant FMU: it has no Real {', '.join(missing)} (the "
+                       f"model is {md.modelName}); give FrictionPlant.fmu (papwc build) or "
+                       "another plant with a force input u and position outputs x, v, x_meas")
+
+
 def make_plant(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
                unzip_dir: str | os.PathLike | None = None) -> Slave:
     """A plant with the scenario's parameters: ``"fmu"`` (an FMU file) or ``"physics"``.
@@ -119,26 +135,31 @@ def release_plant(slave: Slave, fmu: str | os.PathLike | None,
 def run_scenario(scenario: Scenario, plant: str = "fmu", fmu: str | os.PathLike | None = None,
                  progress: Callable[[RunResult], None] | None = None,
                  unzip_dir: str | os.PathLike | None = None,
-                 timeout: float | None = None, library=None) -> list[RunResult]:
+                 timeout: float | None = None, library=None,
+                 stopped: Callable[[RunResult], None] | None = None) -> list[RunResult]:
     """Run every controller of the scenario (each with a fresh plant instance).
 
     ``fmu`` is the plant FMU's path when ``plant`` is ``"fmu"`` (and
     ``unzip_dir`` an extracted copy of it, if there is one); ``progress`` is
     called with each controller's result as it finishes. With ``timeout`` (s),
     :class:`RunTimeout` is raised once the whole run has taken longer. Ctrl-C
-    raises KeyboardInterrupt between two steps (:func:`deferred_interrupt`).
+    raises KeyboardInterrupt between two steps (:func:`deferred_interrupt`), after
+    ``stopped`` was given what the controller under way had computed (its traces, the
+    last one cut; see :func:`papwc.master.run_closed_loop`).
     ``library`` (:func:`controller_library`): the C controller runs the kinds it
     implements, the Python controllers the others (None: all Python); the same numbers.
     """
     results = []
     deadline = None if timeout is None else time.monotonic() + timeout
+    keep = {} if stopped is None else {"stopped": stopped}
     with deferred_interrupt():
         for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
             slave = make_plant(scenario, plant, fmu, unzip_dir)
             guard = StepGuard(deadline, timeout)
             try:
                 results.append(run_controller(slave, settings, scenario.maneuver, label,
-                                              observers=[guard], library=library))
+                                              observers=[guard], library=library,
+                                              **keep))
             finally:
                 release_plant(slave, fmu, unzip_dir)
             if progress is not None:

@@ -12,13 +12,16 @@
  * - every refused call returns fmi2Error and changes nothing; fmi2DoStep returns
  *   fmi2Discard (the state left as it was) for a step size that is not > 0 and finite and
  *   for a step the model refuses (a non-finite input), fmi2Error for a communication point
- *   that is not the end of the last step;
+ *   that is not the end of the last step and for a step that ends past the stop time that
+ *   fmi2SetupExperiment defined (FMI 2.0: computing past stopTime is an error);
  * - a refusal is logged (category logStatusError or logStatusDiscard) when logging is on;
  *   a refused initialization and the first refused step of an instance are also written
  *   to stderr as one line, unless the environment sets PAPWC_FMU_STDERR=0 (so that a run
  *   with logging off, fmpy's default, still says why it stopped);
  * - an FMU state is a copy of the whole instance (phase, time, model data); a serialized
- *   one carries the GUID and its size, and one that does not fit is refused;
+ *   one carries the GUID and its size, and one that does not fit is refused; an instance
+ *   whose initialization was refused gives no state (fmi2GetFMUstate returns fmi2Error:
+ *   such a state could never step);
  * - the Model Exchange functions exist (a host may look them all up) and return fmi2Error.
  *
  * Memory: one block per instance and one per FMU state, freed by fmi2FreeInstance and
@@ -46,6 +49,8 @@ typedef enum {
 #define CATEGORY_DISCARD 2u
 #define CATEGORY_ALL (CATEGORY_ERROR | CATEGORY_DISCARD)
 
+#define MESSAGE_LEN 1024
+
 typedef struct {
     fmi2CallbackLogger logger;
     fmi2ComponentEnvironment environment;
@@ -53,8 +58,12 @@ typedef struct {
     unsigned categories; /* categories logged; 0: logging off */
     int step_told;       /* a refused step has been written to stderr */
     int discarded;       /* the last step was refused with fmi2Discard */
+    int stop_defined;    /* fmi2SetupExperiment defined a stop time */
+    int init_refused;    /* fmi2ExitInitializationMode refused the parameters (told) */
     Phase phase;
     double time;         /* the last communication point, s */
+    double stop_time;    /* the stop time, s (if stop_defined) */
+    char refused[MESSAGE_LEN]; /* why initialization was refused (if init_refused) */
     void *model;
 } Instance;
 
@@ -69,8 +78,6 @@ typedef struct {
 /* A serialized state: this marker, the GUID (zero-padded), then StateHead and the data. */
 static const char SERIAL_MAGIC[8] = {'P', 'A', 'P', 'W', 'C', 'S', 'T', '1'};
 #define SERIAL_GUID_LEN 64
-
-#define MESSAGE_LEN 1024
 
 /* ---------------------------------------------------------------------------------------- */
 /* Numbers and messages. */
@@ -275,21 +282,26 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
 fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
                                fmi2Real tolerance, fmi2Real startTime,
                                fmi2Boolean stopTimeDefined, fmi2Real stopTime) {
-    char text[48];
+    char text[48], stop[48];
     INSTANCE_OR_ERROR(c);
     (void)toleranceDefined;
     (void)tolerance;
-    (void)stopTimeDefined;
-    (void)stopTime;
     if (check_phase(inst, "fmi2SetupExperiment", IN(PHASE_INSTANTIATED)) != fmi2OK) {
         return fmi2Error;
     }
+    fmu_format_real(startTime, text, sizeof text);
     if (!isfinite(startTime)) {
-        fmu_format_real(startTime, text, sizeof text);
         return refuse(inst, fmi2Error, "fmi2SetupExperiment refused: start time %s s is not "
                       "a finite number", text);
     }
+    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime)) {
+        fmu_format_real(stopTime, stop, sizeof stop);
+        return refuse(inst, fmi2Error, "fmi2SetupExperiment refused: stop time %s s must be a "
+                      "finite number >= the start time %s s", stop, text);
+    }
     inst->time = startTime;
+    inst->stop_defined = stopTimeDefined ? 1 : 0;
+    inst->stop_time = stopTime;
     return fmi2OK;
 }
 
@@ -329,9 +341,12 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c) {
     if (model_check(inst->model, report_problem, &found) > 0) {
         snprintf(line, sizeof line, "%s; initialization refused (fmi2Error)", found.joined);
         tell(inst, line);
+        inst->init_refused = 1;
+        memcpy(inst->refused, found.joined, sizeof inst->refused);
         return fmi2Error; /* still in initialization mode: the parameters may be corrected */
     }
     model_start(inst->model);
+    inst->init_refused = 0;
     inst->phase = PHASE_STEP_COMPLETE;
     return fmi2OK;
 }
@@ -354,6 +369,8 @@ fmi2Status fmi2Reset(fmi2Component c) {
     inst->time = 0.0;
     inst->step_told = 0;
     inst->discarded = 0;
+    inst->stop_defined = 0;
+    inst->init_refused = 0;
     return fmi2OK;
 }
 
@@ -531,6 +548,14 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate) {
     INSTANCE_OR_ERROR(c);
     if (FMUstate == NULL) return refuse(inst, fmi2Error, "fmi2GetFMUstate refused: NULL "
                                         "pointer to the state");
+    if (inst->init_refused) {
+        char line[MESSAGE_LEN + 200];
+        snprintf(line, sizeof line, "fmi2GetFMUstate refused: fmi2ExitInitializationMode "
+                 "refused this instance's parameters (%s), so a state of it could never step; "
+                 "correct the parameters and initialize first", inst->refused);
+        tell(inst, line);
+        return refuse(inst, fmi2Error, "%s", line);
+    }
     state = (StateHead *)*FMUstate;
     if (state != NULL && state->magic != STATE_MAGIC) {
         return refuse(inst, fmi2Error, "fmi2GetFMUstate refused: the state to overwrite is "
@@ -578,6 +603,7 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate) {
     inst->phase = (Phase)state->phase;
     inst->time = state->time;
     inst->discarded = 0;
+    inst->init_refused = 0; /* the state's own phase says what the instance may do now */
     memcpy(inst->model, state + 1, model_data_size());
     return fmi2OK;
 }
@@ -733,8 +759,8 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                  inst->phase == PHASE_INITIALIZATION
                      ? " (fmi2ExitInitializationMode refused the parameters or was not called)"
                      : "");
-        /* a refused initialization has been told already */
-        return refuse_step(inst, fmi2Error, t, h, why, inst->phase != PHASE_INITIALIZATION);
+        /* this instance's refused initialization has been told already */
+        return refuse_step(inst, fmi2Error, t, h, why, !inst->init_refused);
     }
     if (!(h > 0.0) || !isfinite(h)) {
         fmu_format_real(h, last, sizeof last);
@@ -747,6 +773,16 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
         fmu_format_real(inst->time, last, sizeof last);
         snprintf(why, sizeof why, "the communication point must be the end of the last step, "
                  "t = %s s", last);
+        return refuse_step(inst, fmi2Error, t, h, why, 1);
+    }
+    if (inst->stop_defined &&
+        t + h > inst->stop_time + 1e-9 * (fabs(inst->stop_time) > h ? fabs(inst->stop_time) : h)) {
+        char end[48], stop[48];
+        fmu_format_real(t + h, end, sizeof end);
+        fmu_format_real(inst->stop_time, stop, sizeof stop);
+        snprintf(why, sizeof why, "the step ends at t = %s s, past the stop time %s s that "
+                 "fmi2SetupExperiment defined (FMI 2.0: computing past stopTime is an error)",
+                 end, stop);
         return refuse_step(inst, fmi2Error, t, h, why, 1);
     }
     if (model_step(inst->model, h, why, sizeof why) != 0) {

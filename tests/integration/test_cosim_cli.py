@@ -294,3 +294,92 @@ def test_cosim_memory_does_not_grow_with_the_runs_length(ssp, tmp_path) -> None:
     long = cosim_peak_mb(ssp, tmp_path / "long", 2000.0)
     assert long - short < 10.0, (short, long)
     assert long < 200.0
+
+
+# --- issue 44: the weak answers kept from earlier rounds ----------------------------------------
+
+
+@pytest.mark.parametrize("kind, words", [
+    ("folder", "is a folder, not a file; give an SSP archive (a .ssp zip file)"),
+    ("fifo", "is not a regular file (a FIFO, device or socket); give an SSP archive (a .ssp "
+             "zip file)"),
+])
+def test_an_ssp_path_that_is_not_a_file_says_what_it_is(kind, tmp_path, capsys, words) -> None:
+    """Issue 44: a folder or a FIFO was 'no such SSP file'."""
+    path = tmp_path / f"a_{kind}.ssp"
+    path.mkdir() if kind == "folder" else os.mkfifo(path)
+    assert refused(capsys, tmp_path, path) == f"papwc cosim: error: {path}: {words}"
+
+
+def test_a_component_name_with_a_dot_is_refused_where_it_is(ssp, tmp_path, capsys) -> None:
+    """Issue 44: a component pl.ant was blamed on a --variables option not given."""
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [('name="plant"', 'name="pl.ant"'),
+                                               ('Element="plant"', 'Element="pl.ant"')])
+    line = refused(capsys, tmp_path, bad)
+    assert '<ssd:Component name="pl.ant" source="resources/FrictionPlant.fmu"' in line
+    assert "a component name cannot hold '.'" in line and "--variables" not in line
+
+
+def test_a_huge_integer_is_shortened_in_its_message(ssp, tmp_path, capsys) -> None:
+    """Issue 44: a 5,000-digit Integer was quoted whole (and called not a whole number)."""
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [(r'<ssv:Integer value="0" />',
+                                               '<ssv:Integer value="' + "7" * 5000 + '" />')])
+    line = refused(capsys, tmp_path, bad)
+    assert "'7777777777777777777777777777777777777777'... (5000 characters): must satisfy " \
+           "-2147483648 <= value <= 2147483647 (an FMI 2.0 Integer)" in line
+    assert len(line) < 400
+
+
+@pytest.mark.parametrize("connection, words", [
+    ('<ssd:Connection startElement="controller" startConnector="b_hat" endElement="plant" '
+     'endConnector="u" />', 'plant.u has a connection already, <ssd:Connection '
+     'startElement="controller" startConnector="u" endElement="plant" endConnector="u">; an '
+     'input takes one connection'),
+    ('<ssd:Connection startElement="plant" startConnector="x" endElement="plant" '
+     'endConnector="u" />', "connects component 'plant' to itself; a connection joins two "
+                            "components"),
+], ids=["two-into-one", "self-loop"])
+def test_connections_an_input_cannot_take_are_refused(connection, words, ssp, tmp_path,
+                                                      capsys) -> None:
+    """Issue 44: two connections into one input, and a self-loop, were accepted."""
+    end = '<ssd:Connection startElement="controller" startConnector="u" endElement="plant" ' \
+          'endConnector="u" />'
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [(re.escape(end), end + connection)])
+    line = refused(capsys, tmp_path, bad)
+    assert words in line and "SystemStructure.ssd <ssd:Connection " in line, line
+
+
+def test_two_fixed_steps_that_differ_are_reported(ssp, tmp_path, capsys) -> None:
+    """Issue 44: oms: 0.005 s beside osp: 0.01 s ran at 0.01 s without a word."""
+    bad = rewrite(ssp, tmp_path / "bad.ssp", [('stepSize="0.01"', 'stepSize="0.005"')])
+    line = refused(capsys, tmp_path, bad)
+    assert ("the fixed step is given twice and differently, osp:FixedStepAlgorithm "
+            "baseStepSize = 0.01 s and oms:FixedStepMaster stepSize = 0.005 s; make them equal "
+            "or give --step") in line
+    out = tmp_path / "out"
+    assert main(["cosim", str(bad), "--out", str(out), "--step", "0.01", "--stop", "0.05",
+                 "--variables", "plant.x"]) == 0  # --step decides
+    capsys.readouterr()
+
+
+def test_the_dual_loop_without_the_motor_encoder_says_so_at_load(
+        friction_plant_fmu, pulse_controller_fmu, tmp_path, capsys) -> None:
+    """Issue 44: the dual loop in an SSP without its x_d_meas connection stopped safely
+    but said nothing. ClosedLoop.ssp of a dual-loop scenario has the connection; without
+    it the SSP is refused in one line."""
+    text = (PROJECT_DIR / "scenarios" / "flexible_dual.toml").read_text()
+    scenario = tmp_path / "dual.toml"
+    scenario.write_text(text[:text.index("[cases]")])
+    good = build_closed_loop_ssp(tmp_path / "b", scenario, friction_plant_fmu,
+                                 pulse_controller_fmu)
+    with zipfile.ZipFile(good) as z:
+        ssd = z.read("SystemStructure.ssd").decode()
+    wire = ('<ssd:Connection startElement="plant" startConnector="x_d_meas" '
+            'endElement="controller" endConnector="x_d_meas" />')
+    assert wire in ssd
+    bad = rewrite(good, tmp_path / "bad.ssp", [(re.escape(wire), "")])
+    line = refused(capsys, tmp_path, bad)
+    assert ('<ssd:Component name="controller" source="resources/PulseController.fmu" '
+            'type="application/x-fmu-sharedlibrary">: kind \'dual_loop\' reads the motor '
+            "encoder, but controller.x_d_meas has no ssd:Connection (it would read 0 m); "
+            "connect the plant's x_d_meas to controller.x_d_meas") in line, line

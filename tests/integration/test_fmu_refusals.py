@@ -1,4 +1,5 @@
-"""FMU states, refused calls and the master's logger, through fmpy (issue 13, groups 7 and 10).
+"""FMU states, refused calls and the master's logger, through fmpy (issue 13, groups 7 and 10;
+issue 44: a step past a defined stop time, a state of a refused initialization).
 
 The pythonfmu FMUs (PulseController and the pythonfmu FrictionPlant, ``papwc build
 --backend pythonfmu``; the native FrictionPlant's refusals are in test_native_fmu.py): a
@@ -19,7 +20,7 @@ from pathlib import Path
 
 import pytest
 from fmpy.fmi1 import FMICallException
-from harness import FmuInstance, table_1
+from harness import FMI2_DISCARD, FMI2_ERROR, FmuInstance, table_1
 
 from papwc.controllers import make_controller
 from papwc.controllers.settings import ControllerSettings
@@ -244,3 +245,113 @@ def test_pulse_controller_refusals_are_not_silent(pulse_controller_python_fmu: P
             "PulseControllerPython controller: parameter K_c cannot be set after "
             "initialization"), err
         assert "pythonfmu returns fmi2OK for this call" in err[0]
+
+
+#: Both builds of FrictionPlant.fmu (the fixtures of their extracted copies) and the status
+#: of a refused step: the native glue returns fmi2Error where FMI 2.0 asks for it; pythonfmu
+#: 0.7.0 can return only fmi2Discard from doStep (the message is logged with status Error).
+BUILDS = [("friction_plant_unzipped", FMI2_ERROR), ("pythonfmu_plant_unzipped", FMI2_DISCARD)]
+
+
+@pytest.mark.parametrize("build, status", BUILDS, ids=["native", "pythonfmu"])
+def test_a_step_past_the_defined_stop_time_is_refused(build, status, request, capfd,
+                                                      monkeypatch) -> None:
+    """Issue 44: with stopTimeDefined, stop 0.05 s, doStep(0, 1.0) returned fmi2OK."""
+    monkeypatch.setenv("PAPWC_FMU_STDERR", "1")  # (papwc cosim and identify set it to 0)
+    unzipped = request.getfixturevalue(build)
+    fmu = FmuInstance(unzipped, "plant")
+    fmu.fmu.setupExperiment(startTime=0.0, stopTime=0.05)
+    fmu.fmu.enterInitializationMode()
+    fmu.fmu.exitInitializationMode()
+    with pytest.raises(FMICallException) as info:
+        fmu.fmu.doStep(0.0, 1.0)
+    assert info.value.status == status
+    refused = fmu.logged(FMI2_ERROR)
+    assert len(refused) == 1 and "doStep(t = 0.0 s, h = 1.0 s) refused: the step ends at t = " \
+        "1.0 s, past the stop time 0.05 s that fmi2SetupExperiment defined" in refused[0]
+    assert "past the stop time 0.05 s" in capfd.readouterr().err  # told with logging off too
+    # Up to the stop time the plant steps (5 x 10 ms ends at 0.05 s within rounding) ...
+    for _ in range(5):
+        fmu.advance(T, u=300.0)
+    x = fmu.get("x")
+    assert x > 0.0
+    # ... and not one step further; the state is left as it was.
+    with pytest.raises(FMICallException) as info:
+        fmu.fmu.doStep(fmu.t, T)
+    assert info.value.status == status and fmu.get("x") == x
+    assert "past the stop time 0.05 s" in fmu.logged(FMI2_ERROR)[-1]
+    fmu.close()
+
+
+@pytest.mark.parametrize("build", [b for b, _ in BUILDS], ids=["native", "pythonfmu"])
+def test_a_stop_time_before_the_start_time_is_refused(build, request) -> None:
+    fmu = FmuInstance(request.getfixturevalue(build), "plant")
+    try:  # the native glue returns fmi2Error; pythonfmu returns fmi2OK and logs the refusal
+        fmu.fmu.setupExperiment(startTime=1.0, stopTime=0.5)
+    except FMICallException as exc:
+        assert exc.status == FMI2_ERROR and "pythonfmu" not in build
+    else:
+        assert "pythonfmu" in build
+    assert fmu.logged(FMI2_ERROR) == ["plant: fmi2SetupExperiment refused: stop time 0.5 s must "
+                                      "be a finite number >= the start time 1.0 s"]
+    fmu.fmu.freeInstance()
+
+
+@pytest.mark.parametrize("build", [b for b, _ in BUILDS], ids=["native", "pythonfmu"])
+def test_no_state_of_an_instance_whose_initialization_was_refused(build, request, capfd,
+                                                                   monkeypatch) -> None:
+    """Issue 44: a state taken from an instance whose initialization was refused was
+    accepted by getFMUstate and setFMUstate, and the next doStep failed with no message."""
+    monkeypatch.setenv("PAPWC_FMU_STDERR", "1")
+    unzipped = request.getfixturevalue(build)
+    bad = FmuInstance(unzipped, "bad", logging=False)
+    bad.fmu.setupExperiment(startTime=0.0)
+    bad.fmu.enterInitializationMode()
+    bad.set("m", -1.0)
+    try:
+        bad.fmu.exitInitializationMode()  # native: fmi2Error; pythonfmu: logged
+    except FMICallException:
+        pass
+    capfd.readouterr()
+    good = started(unzipped, "good")
+    if "pythonfmu" in build:  # pythonfmu cannot refuse getFMUstate: it refuses the state
+        state = bad.fmu.getFMUstate()
+        good.fmu.setFMUstate(state)
+        assert "setFMUstate refused: the state was taken from an instance whose " \
+               "initialization was refused (parameter m = -1.0 kg" in good.messages[-1].text
+    else:
+        with pytest.raises(FMICallException) as info:
+            bad.fmu.getFMUstate()
+        assert info.value.status == FMI2_ERROR
+    err = capfd.readouterr().err
+    assert ("FMUstate refused: fmi2ExitInitializationMode refused this instance's parameters "
+            "(parameter m = -1.0 kg") in err, err
+    good.advance(T, u=300.0)  # the instance that was given the state steps on
+    assert good.get("x") == step(0.0, 0.0, 300.0, T, *PLANT.values())[0]
+    good.close()
+    bad.close()
+
+
+@pytest.mark.parametrize("build", [b for b, _ in BUILDS], ids=["native", "pythonfmu"])
+def test_a_step_after_a_state_of_initialization_mode_says_why(build, request, capfd,
+                                                              monkeypatch) -> None:
+    """A state taken in initialization mode (before it ended) and set into a stepping
+    instance: the next doStep is refused and says so on stderr, logging off or not."""
+    monkeypatch.setenv("PAPWC_FMU_STDERR", "1")
+    unzipped = request.getfixturevalue(build)
+    early = FmuInstance(unzipped, "early")
+    early.fmu.setupExperiment(startTime=0.0)
+    early.fmu.enterInitializationMode()
+    state = early.fmu.getFMUstate()
+    good = FmuInstance(unzipped, "good", logging=False)
+    good.init()
+    good.fmu.setFMUstate(state)
+    capfd.readouterr()
+    with pytest.raises(FMICallException):
+        good.fmu.doStep(0.0, T)
+    err = capfd.readouterr().err
+    assert "good: doStep(t = 0.0 s, h = 0.01 s) refused: " in err, err
+    assert "initialization" in err.split("refused: ", 1)[1]
+    early.fmu.freeFMUstate(state)
+    good.close(terminate=False)
+    early.close(terminate=False)

@@ -1,6 +1,12 @@
 """``papwc identify`` on the command line: --design, a log, --fmu with --start-values on the
 FrictionPlant.fmu that ``papwc build`` makes; bad logs in one line; nothing written outside
---out; Ctrl-C leaves what was written complete or absent."""
+--out; Ctrl-C leaves what was written complete or absent.
+
+Issue 44: logs that lie (a value beyond the model layer's range, a row of too many fields,
+a column named twice, time in milliseconds) and --fmu options that cannot work (an input
+as the position, start values the FMU refuses) are refused before anything is written;
+the plant's own column name x_meas is read by default; --duration's maximum gives a log
+that is read back whole; the steps of a fit are shown while they run."""
 
 from __future__ import annotations
 
@@ -17,6 +23,7 @@ import pytest
 from papwc.cli import main
 from papwc.identify.excitation import apply_to_plant, design
 from papwc.identify.fit_report import write_log
+from papwc.identify.log_file import MAX_LOG_ROWS, read_log
 from papwc.scenario import load_scenario
 
 TRUTH = {"m": 120.0, "f_c": 80.0, "f_s": 110.0, "c": 500.0}
@@ -162,3 +169,126 @@ def test_ctrl_c_leaves_every_file_complete_or_absent(tmp_path, friction_plant_fm
     assert "interrupted" in incomplete and "- report.md" in incomplete
     if "identified.csv" in names:
         assert len(_identified(out)) >= 4
+
+
+# --- issue 44 -----------------------------------------------------------------------------------
+
+
+def _machine_log(path: Path, seconds: float = 40.0) -> list[str]:
+    """A log of the Table-1-like plant TRUTH under the designed excitation; its lines."""
+    u = design(0.01, 300.0, 0.05, seconds)
+    write_log(path, apply_to_plant(u, 0.01, TRUTH))
+    return path.read_text().splitlines()
+
+
+def _cells(line: str, **changes: str) -> str:
+    cells = dict(zip(("time", "u", "x"), line.split(","), strict=True))
+    return ",".join({**cells, **changes}.values())
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda ls: ls.__setitem__(50, _cells(ls[50], u="1e300")),
+     "row 50 (line 51), column 'u': 1e+300 is outside the model layer's range: a force within "
+     "-1e+09..1e+09 N (the largest force limit f_p_max of a controller)"),
+    (lambda ls: ls.__setitem__(60, _cells(ls[60], x="-2e6")),
+     "row 60 (line 61), column 'x': -2000000.0 is outside the model layer's range: a position "
+     "of the plant (its x0), -1e+06..1e+06 m"),
+    (lambda ls: ls.__setitem__(7, ls[7] + ",1,2"),
+     "row 7 (line 8): 5 fields, the header has 3; every row has one value per column"),
+    (lambda ls: ls.__setitem__(0, "time,u,x,x"),
+     "line 1: column 'x' is named twice (fields 3 and 4); each column needs its own name"),
+    (lambda ls: ls.__setitem__(slice(1, None), [
+        _cells(line, time=repr(float(line.split(",")[0]) * 1000.0)) for line in ls[1:]]),
+     "column 'time': the sample period is 10.0 s, outside the 1e-06..0.1 s of a machine's "
+     "log; is the time in milliseconds? (then the period is 0.01 s)"),
+], ids=["force", "position", "fields", "named-twice", "milliseconds"])
+def test_a_log_that_lies_is_refused_in_one_line(tmp_path, empty_cwd, capsys, change, message):
+    """Issue 44: a force of 1e300 N was fitted (f_s = 5e299 N, then plant.toml blamed); a
+    row of 5 fields, a header time,u,x,x and time in milliseconds were accepted."""
+    path = tmp_path / "machine.csv"
+    lines = _machine_log(path)
+    change(lines)
+    if lines[0] == "time,u,x,x":
+        lines[1:] = [line + ",0.0" for line in lines[1:]]
+    path.write_text("\n".join(lines) + "\n")
+    out = tmp_path / "id"
+    assert main(["identify", str(path), "--out", str(out), "--deviations", "none"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{path}, {message}" in err, err
+    assert not out.exists() and list(empty_cwd.iterdir()) == []
+
+
+def test_the_plants_own_column_name_is_read_by_default(tmp_path, capsys):
+    """Issue 44: the default position column was x, while the plant's measured output (and
+    --position-variable's default) is x_meas; x still works (test_a_log_file_is_identified)."""
+    path = tmp_path / "machine.csv"
+    lines = _machine_log(path)
+    path.write_text("\n".join(["time,u,x_meas"] + lines[1:]) + "\n")
+    out = tmp_path / "id"
+    assert main(["identify", str(path), "--out", str(out), "--deviations", "none"]) == 0
+    assert abs(float(_identified(out)["m"]["estimate"]) / TRUTH["m"] - 1.0) < 0.005
+    capsys.readouterr()
+
+
+def test_the_longest_duration_gives_a_log_that_is_read_back_whole(tmp_path, capsys):
+    """Issue 44: at --duration 1000 (its maximum) the log had 100,001 rows, one more than a
+    log could have; the excitation's samples and the log's rows are counted alike now."""
+    out = tmp_path / "id"
+    assert main(["identify", "--design", "--out", str(out), "--duration", "1000"]) == 0
+    with open(out / "excitation.csv", newline="") as f:
+        u = [float(row["u"]) for row in csv.DictReader(f)]
+    assert len(u) == 100_000
+    log = apply_to_plant(u, 0.01, TRUTH)  # what --fmu writes: a sample at each end of a step
+    write_log(tmp_path / "log.csv", log)
+    assert len(log.t) == MAX_LOG_ROWS == 100_001
+    back = read_log(tmp_path / "log.csv")
+    assert (back.t == log.t).all() and (back.x == log.x).all()
+    assert main(["identify", "--design", "--out", str(out), "--duration", "1000.01"]) == 2
+    assert "--duration 1000.01 s: at most 1000 s" in capsys.readouterr().err
+    assert main(["identify", "--design", "--out", str(tmp_path / "t"), "--T", "10"]) == 2
+    assert "--T 10.0 s: the sample period of a machine's log is 1e-06 to 0.1 s" in (
+        capsys.readouterr().err)
+
+
+@pytest.mark.parametrize("options, message", [
+    (["--position-variable", "u"], "--position-variable u: u is an input of the FMU; the "
+                                   "position is a Real output (e.g. x_meas)"),
+    (["--force-variable", "x_meas"], "--force-variable x_meas: x_meas is an output of the "
+                                     "FMU; the force is a Real input (e.g. u)"),
+    (["--start-values", "m=-1"], "--start-values: the FMU refused them: "),
+    (["--start-values", "x=0.5"], "--start-values: x is an output of the FMU; start values "
+                                  "are for its parameters (and inputs)"),
+], ids=["position-input", "force-output", "refused-value", "output-start"])
+def test_fmu_options_that_cannot_work_are_refused_before_any_work(
+        tmp_path, empty_cwd, capsys, friction_plant_fmu, options, message):
+    """Issue 44: --position-variable u (an input) was accepted; start values were checked
+    only by name, so the excitation was written before the FMU refused them."""
+    out = tmp_path / "id"
+    assert main(["identify", "--fmu", str(friction_plant_fmu), "--out", str(out),
+                 *options]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err, err
+    if "m=-1" in options:
+        assert "parameter m = -1.0 kg: must satisfy 1e-06 <= m <= 1e+09 kg" in err
+    assert not out.exists() and list(empty_cwd.iterdir()) == []
+
+
+def test_the_fit_says_what_it_tries_while_it_runs(tmp_path, capsys, monkeypatch):
+    """Issue 44: identify was silent for two minutes while it tried the deviations. Off a
+    terminal each step is a line as it starts and another every PLAIN_PROGRESS_S seconds."""
+    import papwc.progress
+
+    monkeypatch.setattr(papwc.progress, "PLAIN_PROGRESS_S", 0.05)
+    path = tmp_path / "machine.csv"
+    _machine_log(path)
+    assert main(["identify", str(path), "--out", str(tmp_path / "id"), "--deviations",
+                 "stribeck"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    for name in ("stribeck",):
+        start = err.index(next(line for line in err
+                               if line.startswith(f"papwc identify: trying {name}: ")))
+        end = err.index(next(line for line in err
+                             if line.startswith(f"papwc identify: tried {name}: ")))
+        assert start < end
+    assert any(line.endswith("s so far)") for line in err), err
+    assert "\r" not in "".join(err)  # no terminal status line off a terminal

@@ -1,4 +1,5 @@
-"""Every input has a bound and a named error before work starts (issue 13, groups 2, 5, 6, 9).
+"""Every input has a bound and a named error before work starts (issue 13, groups 2, 5, 6, 9;
+issue 44: a byte-order mark, an unquoted dotted key).
 
 Scenario and battery files are validated here without running anything: the
 messages name the file, the table, the field, the value and what is allowed.
@@ -8,6 +9,7 @@ from __future__ import annotations
 
 import re
 import time
+import tomllib
 import tracemalloc
 from pathlib import Path
 
@@ -235,3 +237,41 @@ def test_every_default_of_a_scenario_field_is_listed_from_the_tables() -> None:
     for var in MANEUVER_VARIABLES + CONTROLLER_SETTINGS:
         assert f"`{var.name}` |" in table
     assert "| [plant] | `m` | kg | 150.0 | 1e-06 <= m <= 1e+09 kg |" in table
+
+
+# --- issue 44: a byte-order mark, an unquoted dotted key ----------------------------------------
+
+
+def test_a_byte_order_mark_is_read_past(tmp_path: Path) -> None:
+    """Issue 44: a scenario saved with a UTF-8 BOM (as some editors do) was 'Invalid
+    statement (at line 1, column 1)'."""
+    path = tmp_path / "bom.toml"
+    path.write_bytes(b"\xef\xbb\xbf" + (PROJECT / "scenarios" / "paper.toml").read_bytes())
+    read, shipped = load_scenario(path), load_scenario(PROJECT / "scenarios" / "paper.toml")
+    assert (read.plant, read.maneuver, read.controllers) == (
+        shipped.plant, shipped.maneuver, shipped.controllers)
+    battery = tmp_path / "bom_battery.toml"
+    battery.write_bytes(b"\xef\xbb\xbf" + (PROJECT / "scenarios" / "robustness.toml").read_bytes())
+    assert load_battery(battery).n_runs == load_battery(
+        PROJECT / "scenarios" / "robustness.toml").n_runs
+
+
+@pytest.mark.parametrize("table, key, words", [
+    ("[sweep]", "plant.m = [100.0, 120.0]", "[sweep] field 'plant': TOML read the unquoted key "
+                                            "plant.m as a table 'plant'; quote the path: "
+                                            "\"plant.m\" = ..."),
+    ("[sweep]", "controller.1.K_c = [0.5, 0.8]", "quote the path: \"controller.1.K_c\" = ..."),
+    ("[monte_carlo]\nn = 2", "plant.m = { dist = \"uniform\", rel = 0.1 }",
+     "[monte_carlo] field 'plant': TOML read the unquoted key plant.m as a table 'plant'; "
+     "quote the path: \"plant.m\" = ..."),
+    ("[cases]", "light = { plant.m = 100.0 }", "[cases.light] field 'plant': TOML read the "
+                                               "unquoted key plant.m as a table 'plant'"),
+], ids=["sweep", "sweep-numbered", "monte_carlo", "cases"])
+def test_an_unquoted_dotted_key_gets_a_hint_to_quote_it(table, key, words) -> None:
+    """Issue 44: plant.m = [...] unquoted (a TOML table plant) was 'not a field path' with no
+    hint that the quotes were missing."""
+    text = (f'name = "b"\n[maneuver]\niterations = 1\n[[controller]]\nkind = "papwc"\n'
+            f"{table}\n{key}\n")
+    with pytest.raises(ScenarioError) as info:
+        parse_battery(tomllib.loads(text), "b.toml")
+    assert str(info.value).startswith("b.toml: ") and words in str(info.value), info.value

@@ -65,10 +65,11 @@ def test_ctrl_c_keeps_the_controllers_that_finished_and_marks_the_folder(
         tmp_path: Path, capsys, monkeypatch) -> None:
     real = papwc.scenario_run.run_controller
 
-    def interrupted(slave, settings, maneuver, label="", observers=(), library=None):
+    def interrupted(slave, settings, maneuver, label="", observers=(), library=None,
+                    stopped=None):
         if label == "second":
             raise KeyboardInterrupt
-        return real(slave, settings, maneuver, label, observers, library)
+        return real(slave, settings, maneuver, label, observers, library, stopped)
 
     monkeypatch.setattr(papwc.scenario_run, "run_controller", interrupted)
     code, _, err = run(tmp_path, capsys)

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 import os
+import socket
+import struct
 import time
 from collections import deque
 from collections.abc import Callable
@@ -179,6 +181,103 @@ def run_local(tasks: list[dict], fmu_path: Path, workers: int,
             worker.stop()
 
 
+#: Seconds a Dask scheduler has to accept the connection and greet (``--scheduler``).
+CONNECT_TIMEOUT_S = 20.0
+#: Largest greeting a Dask scheduler sends, bytes (its handshake takes about 60).
+HANDSHAKE_MAX_BYTES = 1 << 16
+
+
+def _recv_exactly(sock: socket.socket, n: int, deadline: float) -> bytes:
+    """``n`` bytes from ``sock`` by ``deadline`` (``time.monotonic()``); TimeoutError if
+    not, EOFError if the peer closes first."""
+    data = b""
+    while len(data) < n:
+        left = deadline - time.monotonic()
+        if left <= 0.0:
+            raise TimeoutError
+        sock.settimeout(left)
+        chunk = sock.recv(n - len(data))
+        if not chunk:
+            raise EOFError
+        data += chunk
+    return data
+
+
+def check_scheduler(address: str, timeout: float | None = None) -> None:
+    """Refuse (BatteryError) an address where no Dask scheduler answers within ``timeout``.
+
+    A Dask scheduler greets every new TCP connection first with its handshake (an 8-byte
+    little-endian length, then msgpack frames holding its Python version); this reads that
+    greeting, at most :data:`HANDSHAKE_MAX_BYTES`, before Dask's client is let near the
+    peer: a web server sends nothing (Dask's client then waited for ever), a peer that
+    sends other bytes made Dask's reader allocate what their first 8 bytes say (exabytes).
+    Only ``tcp://`` (and bare ``HOST:PORT``) addresses are probed; a refused connection is
+    retried until ``timeout`` (s, default :data:`CONNECT_TIMEOUT_S`), as Dask does.
+    """
+    timeout = CONNECT_TIMEOUT_S if timeout is None else timeout
+    try:
+        import msgpack  # noqa: F401 - what a Dask greeting is read with
+        from distributed.protocol.utils import unpack_frames  # noqa: F401
+    except ImportError as exc:
+        raise BatteryError("--scheduler needs dask[distributed]: pip install "
+                           "'papwc[dask]'") from exc
+    scheme, _, rest = address.rpartition("://")
+    if scheme not in ("", "tcp"):
+        return
+    host, _, port = rest.rpartition(":")
+    host = host.strip("[]")
+    where = f"--scheduler {address}"
+    deadline = time.monotonic() + timeout
+    while True:
+        try:
+            sock = socket.create_connection(
+                (host, int(port)), timeout=max(0.1, deadline - time.monotonic()))
+            break
+        except OSError as exc:
+            if time.monotonic() + 0.2 >= deadline:
+                raise BatteryError(f"{where}: cannot connect to a Dask scheduler there within "
+                                   f"{timeout:g} s: {exc.strerror or exc}") from None
+            time.sleep(0.2)
+    with sock:
+        try:
+            head = _recv_exactly(sock, 8, deadline)
+            (n,) = struct.unpack("<Q", head)
+            if not 0 < n <= HANDSHAKE_MAX_BYTES:
+                raise ValueError(f"its first bytes are {head!r}")
+            greeting = _greeting(_recv_exactly(sock, n, deadline))
+        except TimeoutError:
+            raise BatteryError(f"{where}: the peer accepted the connection but sent no Dask "
+                               f"handshake within {timeout:g} s: not a Dask scheduler (give "
+                               "the address `dask scheduler` prints)") from None
+        except EOFError:
+            raise BatteryError(f"{where}: the peer closed the connection without a Dask "
+                               "handshake: not a Dask scheduler") from None
+        except OSError as exc:
+            raise BatteryError(f"{where}: the connection failed before a Dask handshake: "
+                               f"{exc.strerror or exc}") from None
+        except ValueError as exc:
+            raise BatteryError(f"{where}: the peer does not speak Dask ({exc}); give the "
+                               "address `dask scheduler` prints") from None
+    if "python" not in greeting:
+        raise BatteryError(f"{where}: the peer's greeting is not a Dask scheduler's "
+                           f"(it holds {sorted(greeting)[:5]})")
+
+
+def _greeting(data: bytes) -> dict:
+    """The handshake a Dask peer sent (its frames as bytes); ValueError if it is none."""
+    try:
+        import msgpack
+        from distributed.protocol.utils import unpack_frames
+
+        frames, more = unpack_frames(data, partial=True)
+        message = msgpack.loads(bytes(frames[0]), raw=False) if frames and not more else None
+    except Exception as exc:  # noqa: BLE001 - what a foreign peer's bytes raise is open
+        raise ValueError(f"its greeting does not unpack: {type(exc).__name__}") from None
+    if not isinstance(message, dict):
+        raise ValueError("its greeting is not a Dask handshake")
+    return message
+
+
 def run_dask(tasks: list[dict], fmu_path: Path, digest: str, scheduler: str,
               on_done: Callable[[dict], None]) -> None:
     """Run tasks on a Dask distributed cluster; the FMU travels as bytes, scattered once."""
@@ -188,9 +287,13 @@ def run_dask(tasks: list[dict], fmu_path: Path, digest: str, scheduler: str,
         raise BatteryError("--scheduler needs dask[distributed]: pip install "
                            "'papwc[dask]'") from exc
     try:
-        client = Client(scheduler, timeout="20s")
+        client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S:g}s")
     except (OSError, TimeoutError) as exc:
         raise BatteryError(f"cannot connect to the Dask scheduler at {scheduler}: {exc}") from exc
+    except Exception as exc:  # noqa: BLE001 - Dask reading a foreign peer
+        # (a MemoryError here is Dask's reader taking a foreign length, not this run's work)
+        raise BatteryError(f"--scheduler {scheduler}: the peer is not a Dask scheduler "
+                           f"(Dask's client failed: {type(exc).__name__})") from None
     try:
         try:
             client.wait_for_workers(1, timeout=60)

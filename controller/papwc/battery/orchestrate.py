@@ -18,11 +18,9 @@ from papwc.battery.schema import Battery
 from papwc.battery.worker import error_record
 from papwc.errors import BatteryError
 from papwc.limits import MAX_RUNS, MAX_STEPS
+from papwc.progress import PLAIN_PROGRESS_S
 
 # --- the whole battery -----------------------------------------------------------------------
-
-#: Seconds between two progress lines when standard error is not a terminal.
-PLAIN_PROGRESS_S = 10.0
 
 
 @dataclass

@@ -151,11 +151,22 @@ def is_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def _check_path(source: str, table: str, path: str, n_controllers: int, drawn: bool) -> None:
-    """Raise ScenarioError unless ``path`` names a field a battery can vary."""
+def _check_path(source: str, table: str, path: str, n_controllers: int, drawn: bool,
+                value: object = None) -> None:
+    """Raise ScenarioError unless ``path`` names a field a battery can vary (``value``, what
+    the file gives it, tells an unquoted dotted key: TOML reads ``plant.m = ...`` as a
+    table ``plant`` holding ``m``)."""
     parts = path.split(".")
     where = f"{source}: [{table}] field {path!r}"
     head = parts[0]
+    if len(parts) == 1 and head in ("plant", "maneuver", "controller") and isinstance(
+            value, dict) and value:
+        inner, inner_value = next(iter(value.items()))
+        while isinstance(inner_value, dict) and inner_value and "dist" not in inner_value:
+            key, inner_value = next(iter(inner_value.items()))
+            inner = f"{inner}.{key}"
+        raise ScenarioError(f"{where}: TOML read the unquoted key {head}.{inner} as a table "
+                            f"{head!r}; quote the path: \"{head}.{inner}\" = ...")
     if head == "plant" and len(parts) == 2:
         if parts[1] not in PLANT_FIELDS:
             raise ScenarioError(f"{where}: [plant] has no field {parts[1]!r}; allowed: "
@@ -203,7 +214,7 @@ def parse_battery(data: dict, source: str) -> Battery:
     if not isinstance(sweep, dict):
         raise ScenarioError(f"{source}: [sweep] must be a table of path = [values]")
     for path, values in sweep.items():
-        _check_path(source, "sweep", path, n_ctrl, drawn=False)
+        _check_path(source, "sweep", path, n_ctrl, drawn=False, value=values)
         if not isinstance(values, list) or not values:
             raise ScenarioError(f"{source}: [sweep] field {path!r} = {values!r}: must be a "
                                 "non-empty array of values")
@@ -297,7 +308,7 @@ def _parse_cases(source: str, cases, n_ctrl: int) -> list[tuple[str, dict]]:
                                 "table of path = value, e.g. { \"plant.v_s\" = 1e-3 } ({} for "
                                 "the file's own values)")
         for path, value in overrides.items():
-            _check_path(source, f"cases.{name}", path, n_ctrl, drawn=False)
+            _check_path(source, f"cases.{name}", path, n_ctrl, drawn=False, value=value)
             if not (is_number(value) or isinstance(value, str)):
                 raise ScenarioError(f"{source}: [cases.{name}] field {path!r} = {value!r}: "
                                     "must be a number or a string")
@@ -318,7 +329,8 @@ def _refuse_set_twice(source: str, cases: list[tuple[str, dict]], paths: set[str
 
 def _parse_distribution(source: str, path: str, spec, n_ctrl: int) -> Distribution:
     where = f"{source}: [monte_carlo] field {path!r}"
-    _check_path(source, "monte_carlo", path, n_ctrl, drawn=True)
+    _check_path(source, "monte_carlo", path, n_ctrl, drawn=True,
+                value=spec if isinstance(spec, dict) and "dist" not in spec else None)
     if not isinstance(spec, dict):
         raise ScenarioError(f"{where} = {spec!r}: must be a table such as "
                             "{ dist = \"uniform\", rel = 0.3 }")

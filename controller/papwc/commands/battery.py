@@ -107,6 +107,10 @@ def run(args: argparse.Namespace) -> int:
     from papwc.battery.plan import check_size
 
     check_size(batteries, args.max_runs)
+    if args.scheduler is not None:
+        from papwc.battery.engines import check_scheduler
+
+        check_scheduler(args.scheduler)  # before anything is written
     out = args.out
     if out is None:
         out = Path("results") / (batteries[0].name if len(batteries) == 1 else "battery")

@@ -13,6 +13,10 @@ HELP = (
 )
 
 EPILOG = """\
+While it works, the step under way is shown on standard error (a status line on a
+terminal; otherwise a line as each step starts and one every 10 s while it lasts). The
+first build compiles zig's C runtimes for every platform: a few minutes, once.
+
 examples:
   papwc build                      # in a checkout: writes build/FrictionPlant.fmu,
                                    # build/PulseController.fmu (C: pwc, papwc, pid),
@@ -69,18 +73,25 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Build every FMU and the SSP into ``args.out``; print each path written; return 0."""
-    from papwc.fmubuild.fmus import build_all
+    from papwc.fmubuild.fmus import FMUS, build_fmu
     from papwc.fmubuild.ssp_writer import build_closed_loop_ssp
+    from papwc.progress import Progress
     from papwc.resources import scenario_file
 
     out = default_out(args.out, "build")
     _check_controller(args)  # 1-based, checked before anything is built
-    for path in build_all(out, backend=args.backend):
+    with Progress("papwc build") as progress:
+        for recipe in FMUS:
+            path = build_fmu(recipe.name, out, args.backend)
+            progress.done()
+            print(path, flush=True)
+        scenario = args.scenario if args.scenario is not None else scenario_file("paper.toml")
+        index = None if args.controller is None else args.controller - 1
+        progress.doing("writing ClosedLoop.ssp")
+        path = build_closed_loop_ssp(out, scenario, out / "FrictionPlant.fmu",
+                                     out / "PulseController.fmu", index)
+        progress.done()
         print(path)
-    scenario = args.scenario if args.scenario is not None else scenario_file("paper.toml")
-    index = None if args.controller is None else args.controller - 1
-    print(build_closed_loop_ssp(out, scenario, out / "FrictionPlant.fmu",
-                                out / "PulseController.fmu", index))
     return 0
 
 

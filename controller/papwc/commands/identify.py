@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import sys
 from pathlib import Path
 
@@ -21,9 +22,14 @@ examples:
   papwc identify --fmu build/FrictionPlant.fmu --start-values m=120,f_c=80,f_s=110,c=500 \\
       --out id/                            # applies the excitation, writes id/log.csv, fits
 
-a log is a CSV with a header: time (s), force (N, held from its row to the next), table
-position (m); evenly sampled. DIR holds INCOMPLETE until everything is written; a new run
-into DIR first removes what an earlier one wrote there, nothing else.
+a log is a CSV with a header naming each column once: time (s), force (N, held from its
+row to the next), table position (m; the column x_meas, else x); one value per column in
+every row, evenly sampled at a period of 1e-06 to 0.1 s (time in seconds), each value
+finite and within the model layer's range (|force| <= 1e9 N, |position| <= 1e6 m,
+|time| <= 1e9 s). DIR holds INCOMPLETE until everything is written; a new run into DIR
+first removes what an earlier one wrote there, nothing else. The step under way is shown
+on standard error (a status line on a terminal; otherwise a line as each step starts and
+one every 10 s while it lasts).
 exit code: 0 ok, 1 a file cannot be written, 2 a bad log, option or FMU, 130 interrupted.
 """
 
@@ -96,7 +102,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     columns = parser.add_argument_group("the log's columns")
     columns.add_argument("--time-column", default="time", metavar="NAME")
     columns.add_argument("--force-column", default="u", metavar="NAME")
-    columns.add_argument("--position-column", default="x", metavar="NAME")
+    columns.add_argument("--position-column", default=None, metavar="NAME",
+                         help="the table position (default: x_meas, the plant's measured "
+                              "output, else x)")
     columns.add_argument("--motor-column", default=None, metavar="NAME",
                          help="motor position (read and checked; the flexible drive is not "
                               "fitted)")
@@ -110,6 +118,7 @@ def _check(args: argparse.Namespace) -> tuple[str, tuple[str, ...]]:
     from papwc.identify import IdentifyError
     from papwc.identify.fit import DEVIATIONS
     from papwc.identify.log_file import MAX_LOG_ROWS
+    from papwc.model.maneuver import LOG_SAMPLE_PERIOD
     from papwc.model.plant import plant_problems
 
     modes = [name for name, on in (("LOG.csv", args.log is not None), ("--design", args.design),
@@ -128,11 +137,16 @@ def _check(args: argparse.Namespace) -> tuple[str, tuple[str, ...]]:
             raise IdentifyError(f"--deviations: unknown deviation {name!r}; allowed: "
                                 + ", ".join(known) + " or none")
     if modes[0] != "LOG.csv":
+        period = LOG_SAMPLE_PERIOD
+        if not period.min <= args.T <= period.max:
+            raise IdentifyError(f"--T {args.T!r} s: the sample period of a machine's log is "
+                                f"{period.min:g} to {period.max:g} s (the log is read back)")
         if args.duration > MAX_DURATION:
             raise IdentifyError(f"--duration {args.duration!r} s: at most {MAX_DURATION:g} s")
-        if args.duration / args.T > MAX_LOG_ROWS:
-            raise IdentifyError(f"--duration {args.duration!r} s / --T {args.T!r} s = "
-                                f"{args.duration / args.T:.6g} samples: at most {MAX_LOG_ROWS}")
+        rows = round(args.duration / args.T) + 1  # the samples: both ends of every step
+        if rows > MAX_LOG_ROWS:
+            raise IdentifyError(f"--duration {args.duration!r} s / --T {args.T!r} s makes a "
+                                f"log of {rows} samples: at most {MAX_LOG_ROWS}")
         for name in args.expect:
             if name not in ("m", "f_c", "f_s", "c"):
                 raise IdentifyError(f"--expect: {name!r} is not one of m, f_c, f_s, c")
@@ -154,6 +168,7 @@ def run(args: argparse.Namespace) -> int:
         write_log,
     )
     from papwc.identify.log_file import Columns, check_travel, read_log
+    from papwc.progress import Progress
 
     mode, deviations = _check(args)
     columns = Columns(args.time_column, args.force_column, args.position_column,
@@ -164,6 +179,8 @@ def run(args: argparse.Namespace) -> int:
         check_travel(log, args.travel)
         check_log(log)  # no motion, no breakaway, too short: refused before anything is written
     if mode == "--fmu":
+        # The master reads the FMU's log and says a refusal itself, in one line.
+        os.environ["PAPWC_FMU_STDERR"] = "0"
         check_fmu(args.fmu, args.start_values, args.force_variable, args.position_variable)
     u = None
     if mode != "LOG.csv":
@@ -177,42 +194,46 @@ def run(args: argparse.Namespace) -> int:
     folder.start()
     command = "papwc identify " + " ".join(sys.argv[2:]) if len(sys.argv) > 2 else (
         "papwc identify")
-    try:
-        if u is not None:
-            write_excitation(folder.out / "excitation.csv", u, args.T)
-            folder.wrote("excitation.csv")
-            print(f"wrote {folder.out / 'excitation.csv'}: {u.size} samples of "
-                  f"{args.T:g} s ({u.size * args.T:.4g} s), |u| <= {float(abs(u).max()):.6g} N")
-        if mode == "--fmu":
-            folder.mark("papwc identify is applying the excitation to the FMU")
-            log = apply_to_fmu(args.fmu, u, args.T, args.start_values, args.force_variable,
-                               args.position_variable)
-            write_log(folder.out / "log.csv", log)
-            folder.wrote("log.csv")
-            log.source = str(folder.out / "log.csv")
-            check_travel(log, args.travel)
-        if log is not None:
-            folder.mark("papwc identify is fitting the plant")
-            ident = identify(log, deviations,
-                             progress=lambda text: print(f"papwc identify: {text}",
-                                                         file=sys.stderr))
-            if args.motor_column is not None:
-                ident.notes.append(f"the motor position (column {args.motor_column!r}) was read "
-                                   "and checked; the flexible drive is not fitted")
-            write_identification(folder, ident, command)
-            for e in ident.estimates:
-                print(f"{e.name:<13} {e.value:>14.6g}  [{e.low:.6g}, {e.high:.6g}] {e.unit}")
-            print("deviations chosen: " + (", ".join(ident.chosen) or "none"))
-            print(f"replay rms {ident.replay_rms:.3g} m (bound {ident.replay_bound:.3g} m); "
-                  f"identified in {ident.seconds:.3g} s")
-            print(f"wrote plant.toml, identified.csv, report.md and figures in {folder.out}")
-        folder.finish()
-    except KeyboardInterrupt:
-        print("papwc identify: interrupted; " + folder.abort("interrupted (Ctrl-C)"),
-              file=sys.stderr)
-        raise
-    except BaseException as exc:
-        print("papwc identify: stopped; " + folder.abort(f"stopped by an error: {exc}"),
-              file=sys.stderr)
-        raise
+    with Progress("papwc identify") as progress:
+        try:
+            if u is not None:
+                write_excitation(folder.out / "excitation.csv", u, args.T)
+                folder.wrote("excitation.csv")
+                print(f"wrote {folder.out / 'excitation.csv'}: {u.size} samples of "
+                      f"{args.T:g} s ({u.size * args.T:.4g} s), |u| <= {float(abs(u).max()):.6g} N")
+            if mode == "--fmu":
+                folder.mark("papwc identify is applying the excitation to the FMU")
+                progress.doing(f"applying the excitation to {args.fmu}: {u.size} steps of "
+                               f"{args.T:g} s")
+                log = apply_to_fmu(args.fmu, u, args.T, args.start_values, args.force_variable,
+                                   args.position_variable)
+                write_log(folder.out / "log.csv", log)
+                folder.wrote("log.csv")
+                log.source = str(folder.out / "log.csv")
+                check_travel(log, args.travel)
+            if log is not None:
+                folder.mark("papwc identify is fitting the plant")
+                ident = identify(log, deviations, progress=progress.say)
+                progress.done()
+                if args.motor_column is not None:
+                    ident.notes.append(f"the motor position (column {args.motor_column!r}) was "
+                                       "read and checked; the flexible drive is not fitted")
+                write_identification(folder, ident, command)
+                for e in ident.estimates:
+                    print(f"{e.name:<13} {e.value:>14.6g}  [{e.low:.6g}, {e.high:.6g}] {e.unit}")
+                print("deviations chosen: " + (", ".join(ident.chosen) or "none"))
+                print(f"replay rms {ident.replay_rms:.3g} m (bound {ident.replay_bound:.3g} m); "
+                      f"identified in {ident.seconds:.3g} s")
+                print(f"wrote plant.toml, identified.csv, report.md and figures in {folder.out}")
+            folder.finish()
+        except KeyboardInterrupt:
+            progress.done()
+            print("papwc identify: interrupted; " + folder.abort("interrupted (Ctrl-C)"),
+                  file=sys.stderr)
+            raise
+        except BaseException as exc:
+            progress.done()
+            print("papwc identify: stopped; " + folder.abort(f"stopped by an error: {exc}"),
+                  file=sys.stderr)
+            raise
     return 0

@@ -17,8 +17,10 @@ EPILOG = """examples:
 
 each controller's traces and summary rows are written as it finishes; until
 everything is written (and after Ctrl-C or an error) DIR holds a file
-INCOMPLETE saying what is missing. A new run into DIR first removes what an
-earlier run wrote there (summary.csv, trace_*_it*.csv, the plots), nothing else.
+INCOMPLETE saying what is missing. Ctrl-C (or SIGTERM) keeps the traces of the
+controller under way too, the last one cut short (INCOMPLETE says where). A new
+run into DIR first removes what an earlier run wrote there (summary.csv,
+trace_*_it*.csv, the plots), nothing else.
 exit code: 0 ok, 1 a controller's run failed or a file cannot be written,
 2 the scenario file or an option is wrong, 130 interrupted (Ctrl-C).
 """
@@ -73,6 +75,11 @@ def run(args: argparse.Namespace) -> int:
     from papwc.scenario import load_scenario
     from papwc.scenario_run import ensure_plant_fmu, run_scenario
 
+    if args.plant == "physics" and args.fmu is not None:
+        from papwc.errors import PapwcError
+
+        raise PapwcError(f"--fmu {args.fmu}: --plant physics runs the in-process physics and "
+                         "loads no FMU; give --fmu with --plant fmu (the default) only")
     scenario = load_scenario(args.scenario)
     m = scenario.maneuver
     check_steps(str(args.scenario), len(scenario.controllers), m.iterations, m.duration, m.T,
@@ -88,7 +95,8 @@ def run(args: argparse.Namespace) -> int:
 
     library = controller_library(args.controllers, out)
     results = run_into_folder(folder, lambda progress: run_scenario(
-        scenario, args.plant, fmu, progress=progress, library=library))
+        scenario, args.plant, fmu, progress=progress, library=library,
+        stopped=folder.add_cut))
     rows = run_into_folder(folder, lambda progress: folder.finish())
     print(format_table(rows))
     print(f"wrote {out / 'summary.csv'}, {len(rows)} rows, pulses.csv, traces and plots in "

@@ -15,13 +15,18 @@ rest, the same way in every FMU:
 - refuses a parameter or an output set after initialization (logged, value
   kept), and any input set or step after ``fmi2Terminate``;
 - ``doStep`` returns Discard with a logged reason and the state untouched when
-  the model's step refuses (a non-finite input, a bad step size);
+  the model's step refuses (a non-finite input, a bad step size), and when the
+  step would end past the stop time ``fmi2SetupExperiment`` defined (FMI 2.0 asks
+  for fmi2Error there, which pythonfmu 0.7.0 cannot return from ``doStep``: the
+  message is logged with status Error);
 - keeps the time of the last communication point;
 - writes ``%`` in log messages as ``%%`` (a host formats an FMI message as a
   printf format string; a value holding ``%n`` would otherwise be read as one);
 - gets, sets, serializes and deserializes the state; a state that does not
   parse or does not belong to this FMU is refused before anything changes,
-  and the instance keeps working.
+  and the instance keeps working; an instance whose initialization was refused
+  gives no state (``getFMUstate`` logs the refusal and returns a state that
+  ``setFMUstate`` refuses, naming why).
 
 pythonfmu 0.7.0 returns fmi2OK for a refused ``setReal`` (``setInteger``,
 ``setBoolean``, ``setString``) or ``setFMUstate``: it ignores what the Python
@@ -110,6 +115,8 @@ class CheckedSlave(Fmi2Slave):
         self._problems: list[str] = []
         #: Whether a refused step has been written to stderr.
         self._step_told = False
+        #: The stop time fmi2SetupExperiment defined, s (None: none).
+        self._stop_time: float | None = None
         for var in self.VARIABLES:
             setattr(self, var.name, var.fmi_start)
             self.register_variable(self._declare(var))
@@ -263,8 +270,20 @@ class CheckedSlave(Fmi2Slave):
     def setup_experiment(
         self, start_time: float, stop_time: float | None = None, tolerance: float | None = None
     ) -> None:
-        """Take the start time (s) as the first communication point."""
+        """Take the start time (s) as the first communication point, and the stop time (s,
+        None: not defined) past which no step goes; refuse (logged) a time that is not a
+        finite number, or a stop time before the start time."""
+        if not math.isfinite(start_time):
+            self.refuse(f"fmi2SetupExperiment refused: start time {start_time!r} s is not a "
+                        "finite number")
+            return
+        if stop_time is not None and not (math.isfinite(stop_time)
+                                          and stop_time >= start_time):
+            self.refuse(f"fmi2SetupExperiment refused: stop time {stop_time!r} s must be a "
+                        f"finite number >= the start time {start_time!r} s")
+            return
         self.time = start_time
+        self._stop_time = stop_time
 
     def exit_initialization_mode(self) -> None:
         """Check the parameters; refuse invalid ones (logged), else :meth:`start`."""
@@ -288,7 +307,15 @@ class CheckedSlave(Fmi2Slave):
 
     def do_step(self, current_time: float, step_size: float) -> bool:
         """Advance by :meth:`step`; False (Discard, logged, state unchanged) if refused."""
-        if self._ready and not self._terminated:
+        status = Fmi2Status.discard
+        stop = self._stop_time
+        if self._ready and not self._terminated and stop is not None and (
+                current_time + step_size > stop + 1e-9 * max(abs(stop), step_size)):
+            status = Fmi2Status.error
+            reason = (f"the step ends at t = {current_time + step_size!r} s, past the stop "
+                      f"time {stop!r} s that fmi2SetupExperiment defined (FMI 2.0: computing "
+                      "past stopTime is an error; pythonfmu returns fmi2Discard for it)")
+        elif self._ready and not self._terminated:
             reason = self.step(current_time, step_size)
             if reason is None:
                 self.time = current_time + step_size
@@ -301,7 +328,7 @@ class CheckedSlave(Fmi2Slave):
             reason = "initialization has not ended (call exitInitializationMode first)"
         message = (f"doStep(t = {current_time!r} s, h = {step_size!r} s) refused: {reason}; "
                    "the state is left as it was")
-        self.log(f"{self.instance_name}: {message}", Fmi2Status.discard)
+        self.log(f"{self.instance_name}: {message}", status)
         if not self._step_told and not self._problems:
             self._step_told = True
             self.tell(message + " (later refusals are only logged)")
@@ -330,8 +357,21 @@ class CheckedSlave(Fmi2Slave):
         return [v.name for v in self.VARIABLES] + list(self.STATE) + [
             "time", "_initialized", "_ready", "_terminated", "_problems"]
 
+    def _refused_initialization(self) -> str:
+        """Why initialization was refused ("" if it was not)."""
+        return "; ".join(self._problems) if self._initialized and not self._ready else ""
+
     def _get_fmu_state(self) -> dict[str, Any]:
-        """The complete state, a JSON-able dict marked with the model's name."""
+        """The complete state, a JSON-able dict marked with the model's name; of an instance
+        whose initialization was refused, a state that :meth:`_set_fmu_state` refuses."""
+        refused = self._refused_initialization()
+        if refused:
+            why = (f"fmi2ExitInitializationMode refused this instance's parameters ({refused}), "
+                   "so a state of it could never step; correct the parameters and "
+                   "initialize first")
+            self.refuse(f"getFMUstate refused: {why}")
+            return {"invalid": f"the state was taken from an instance whose initialization "
+                               f"was refused ({refused})"}
         fields = {name: getattr(self, name) for name in self._state_names()}
         return {_STATE_KEY: type(self).__name__, "fields": self.encode_state(fields)}
 
@@ -391,6 +431,9 @@ class CheckedSlave(Fmi2Slave):
         if not (isinstance(fields["_problems"], list)
                 and all(isinstance(p, str) for p in fields["_problems"])):
             raise ValueError("field _problems is not a list of strings")
+        if fields["_initialized"] and not fields["_ready"] and fields["_problems"]:
+            raise ValueError("the state is of an instance whose initialization was refused ("
+                             + "; ".join(fields["_problems"]) + ")")
         if fields["_ready"]:
             conflicts, others = self._parameter_problems(
                 {v.name: fields[v.name] for v in self._parameters()})

@@ -221,11 +221,15 @@ def fmu_digest(name: str, backend: str = DEFAULT_BACKEND) -> str:
 
 def build_fmu(name: str, out_dir: Path, backend: str = DEFAULT_BACKEND) -> Path:
     """Build FMU ``name`` into ``out_dir`` with ``backend``; return the path written."""
+    from papwc import progress
+
     r = recipe(name)
     if r.uses_native(backend):
         from papwc.fmubuild.native_build import build_native
 
+        progress.doing(f"building {name}.fmu (C, compiled by zig)")
         return build_native(r.native_source(), out_dir)
+    progress.doing(f"building {name}.fmu with pythonfmu")
     return build_pythonfmu(r.source(), out_dir)
 
 

@@ -134,6 +134,13 @@ def zig_command() -> list[str]:
 ZIG_VERSION = "0.17.1"
 
 
+def zig_cache_dir() -> Path:
+    """zig's global cache: ``ZIG_GLOBAL_CACHE_DIR``, else a private one per user in the temp
+    folder (compiled objects and the C runtimes of every target)."""
+    return Path(os.environ.get("ZIG_GLOBAL_CACHE_DIR")
+                or Path(tempfile.gettempdir()) / "papwc-zig-cache")
+
+
 def host_compiler(variable: str = "PAPWC_CC") -> list[str] | None:
     """A C compiler for this machine (not a cross-compiler): the environment variable
     ``variable`` (a command, split at spaces), else the system ``cc``, ``gcc`` or ``clang``,
@@ -291,8 +298,7 @@ def _compile(tree: Path, target: str, extra: Sequence[str], out: Path, name: str
     command = [*zig_command(), "-target", target, *C_FLAGS, "-shared", "-s", *extra,
                "-I", "sources", "-o", relative, *c_files]
     env = dict(os.environ)
-    # zig keeps a cache of compiled objects; a private one per user in the temp folder
-    env.setdefault("ZIG_GLOBAL_CACHE_DIR", str(Path(tempfile.gettempdir()) / "papwc-zig-cache"))
+    env["ZIG_GLOBAL_CACHE_DIR"] = str(zig_cache_dir())
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=600, env=env,
                               check=False, cwd=str(tree))
@@ -333,8 +339,15 @@ def compile_binaries(tree: Path, name: str,
                      more: dict[str, tuple[str, ...]] | None = None) -> list[Path]:
     """Compile ``tree/sources/*.c`` for every platform of :data:`TARGETS` into
     ``tree/binaries/<platform>/`` (``more``: further flags by platform folder)."""
+    from papwc import progress
+
     binaries = tree / "binaries"
     written = []
+    cache = zig_cache_dir()
+    if not any((cache / "o").glob("*")):
+        progress.note_once("zig runtimes", f"the first build compiles zig's C runtimes for "
+                           f"{', '.join(TARGETS)} into {cache}: a few minutes, once; later "
+                           "builds take seconds")
     for folder, (targets, suffix, extra) in TARGETS.items():
         extra = (*extra, *(more or {}).get(folder, ()))
         (binaries / folder).mkdir(parents=True, exist_ok=True)
@@ -342,10 +355,14 @@ def compile_binaries(tree: Path, name: str,
         if suffix == ".dylib":  # the install name is the file's, not the build folder's
             extra = (*extra, f"-Wl,-install_name,@rpath/{name}{suffix}")
         if len(targets) == 1:
+            progress.doing(f"compiling {name}.fmu's C sources for {folder} ({targets[0]}) "
+                           "with zig")
             _compile(tree, targets[0], extra, out, name)
         else:
             thin = []
             for target in targets:
+                progress.doing(f"compiling {name}.fmu's C sources for {folder} ({target}) "
+                               "with zig")
                 part = binaries / folder / f"{name}.{target}{suffix}"
                 _compile(tree, target, extra, part, name)
                 thin.append(part.read_bytes())
@@ -665,6 +682,9 @@ def build_native(source: NativeSource, out_dir: Path) -> Path:
             for path in sorted(p for p in tree.rglob("*") if p.is_file()):
                 archive.write(path, path.relative_to(tree).as_posix())
         rewrite_fmu(built)  # sorted members, fixed times and modes: the same bytes each build
+        from papwc import progress
+
+        progress.doing(f"checking {built.name} with fmpy's validation")
         problems = validate_fmu(str(built))
         if problems:
             raise BuildError(f"{built.name} is not valid: " + "; ".join(problems))

@@ -89,6 +89,8 @@ CONNECTIONS: tuple[tuple[str, str, str, str], ...] = (
     (PLANT, "x_meas", CONTROLLER, "x_meas"),
     (CONTROLLER, "u", PLANT, "u"),
 )
+#: The connection a controller that reads the motor encoder (dual_loop) needs as well.
+MOTOR_CONNECTION: tuple[str, str, str, str] = (PLANT, "x_d_meas", CONTROLLER, "x_d_meas")
 
 #: Connectors declared per component: name -> (kind, type, unit), from the model layer.
 #: The controller's input ``x_ref`` is not declared: it is not connected (the reference
@@ -267,6 +269,14 @@ def _ssd(
             f"T = {scenario.maneuver.T!r} s"
         ),
     )
+    from papwc.controllers import CONTROLLER_KINDS
+
+    motor = CONTROLLER_KINDS[settings.kind].reads_x_d_meas
+    wired = CONNECTIONS + ((MOTOR_CONNECTION,) if motor else ())
+    declared = {component: dict(_CONNECTORS[component]) for component in (PLANT, CONTROLLER)}
+    if motor:
+        declared[CONTROLLER]["x_d_meas"] = next(
+            (v.causality, v.type, v.unit) for v in CONTROLLER_INPUTS if v.name == "x_d_meas")
     elements = ET.SubElement(system, "ssd:Elements")
     units_used: set[str] = set()
     for component in (PLANT, CONTROLLER):
@@ -278,7 +288,7 @@ def _ssd(
             source=sources[component],
         )
         connectors = ET.SubElement(element, "ssd:Connectors")
-        for name, (kind, typ, unit) in _CONNECTORS[component].items():
+        for name, (kind, typ, unit) in declared[component].items():
             connector = ET.SubElement(connectors, "ssd:Connector", name=name, kind=kind)
             typed = ET.SubElement(connector, f"ssc:{typ}")
             if unit is not None:
@@ -302,7 +312,7 @@ def _ssd(
             else:
                 ET.SubElement(parameter, "ssv:Real", value=_number(value))
     connections = ET.SubElement(system, "ssd:Connections")
-    for start_element, start_connector, end_element, end_connector in CONNECTIONS:
+    for start_element, start_connector, end_element, end_connector in wired:
         ET.SubElement(
             connections,
             "ssd:Connection",

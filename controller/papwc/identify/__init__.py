@@ -23,12 +23,13 @@ line, ``papwc identify machine.csv --out id/``.
 """
 
 from papwc.errors import PapwcError
+from papwc.model.maneuver import LOG_SAMPLE_PERIOD
 
 __all__ = ["DESIGN_DURATION", "DESIGN_F_P_MAX", "DESIGN_T", "DESIGN_TRAVEL", "IdentifyError"]
 
 #: The excitation's defaults (``papwc identify --design``): sample period, s; largest force,
 #: N; the travel the table stays within, m; length, s.
-DESIGN_T = 0.01
+DESIGN_T = LOG_SAMPLE_PERIOD.default
 DESIGN_F_P_MAX = 300.0
 DESIGN_TRAVEL = 0.05
 DESIGN_DURATION = 60.0

@@ -183,38 +183,58 @@ def apply_to_plant(u: np.ndarray, h: float, params: Mapping[str, Any]) -> Log:
         x.append(plant.x_meas())
     n = len(u) + 1
     return Log(np.arange(n) * h, np.append(np.asarray(u, dtype=float), 0.0), np.array(x), None,
-               float(h), "the plant", Columns())
+               float(h), "the plant", Columns(position="x"))
+
+
+def _check_variables(kinds: Mapping[str, tuple[str, str]], where: str, force: str,
+                     position: str) -> None:
+    """Refuse (FmuError) an FMU whose ``force`` is not a Real input or whose ``position``
+    is not a Real output; ``kinds`` maps each variable to (causality, type)."""
+    from papwc.errors import FmuError
+
+    for name, want, what, option in ((force, "input", "force", "--force-variable"),
+                                     (position, "output", "position", "--position-variable")):
+        causality, typ = kinds.get(name, ("", ""))
+        if typ != "Real":
+            raise FmuError(f"{where}: has no Real variable {name!r} (the {what}; {option})")
+        if causality != want:
+            article = "an" if causality[:1] in ("i", "o") else "a"
+            raise FmuError(f"{where}: {option} {name}: {name} is {article} {causality} of the FMU; "
+                           f"the {what} is a Real {want} (e.g. "
+                           f"{'u' if want == 'input' else 'x_meas'})")
 
 
 def check_fmu(fmu: str | os.PathLike, start_values: Mapping[str, Any], force: str = "u",
               position: str = "x_meas") -> None:
-    """Refuse an FMU that is not FMI 2.0 Co-Simulation or lacks a variable named (FmuError).
+    """Refuse, before anything is written, an FMU that cannot be identified (FmuError): not
+    FMI 2.0 Co-Simulation or not loadable, ``force`` not a Real input, ``position`` not a
+    Real output, a start value of a variable it lacks, or start values it refuses.
 
-    Reads only the model description (before anything is written).
+    The FMU is opened as the master opens it and initialized with ``start_values`` once
+    (its own checks of the parameters), then freed.
     """
-    from fmpy import read_model_description
-
     from papwc.errors import FmuError
+    from papwc.master.fmu import FmuSlave
 
     path = Path(fmu)
     if not path.is_file():
         raise FmuError(f"FMU file {str(path)!r} " + ("is not a file" if path.exists()
                                                       else "does not exist"))
-    try:
-        md = read_model_description(str(path))
-    except Exception as exc:  # noqa: BLE001 - fmpy raises plain Exceptions for broken files
-        raise FmuError(f"{path}: cannot read modelDescription.xml: {exc}") from None
-    if md.fmiVersion != "2.0" or md.coSimulation is None:
-        raise FmuError(f"{path}: not an FMI 2.0 Co-Simulation FMU")
-    kinds = {v.name: (v.causality, v.type) for v in md.modelVariables}
-    if kinds.get(force) != ("input", "Real"):
-        raise FmuError(f"{path}: has no Real input {force!r} (the force; --force-variable)")
-    if position not in kinds or kinds[position][1] != "Real":
-        raise FmuError(f"{path}: has no Real variable {position!r} (the position; "
-                       "--position-variable)")
-    for name in start_values:
-        if name not in kinds:
-            raise FmuError(f"{path}: --start-values: the FMU has no variable {name!r}")
+    with FmuSlave(path, name="check", where=str(path)) as slave:
+        kinds = {name: (v.causality, v.type) for name, v in slave.vars.items()}
+        _check_variables(kinds, str(path), force, position)
+        for name in start_values:
+            if name not in kinds:
+                raise FmuError(f"{path}: --start-values: the FMU has no variable {name!r}")
+            if kinds[name][0] not in ("parameter", "input"):
+                raise FmuError(f"{path}: --start-values: {name} is an {kinds[name][0]} of the "
+                               "FMU; start values are for its parameters (and inputs)")
+        slave.set_start_values(dict(start_values))
+        try:
+            slave.initialize(0.0)
+        except FmuError as exc:
+            raise FmuError(f"{path}: --start-values: the FMU refused them: "
+                           f"{str(exc).split(': ', 1)[-1]}") from None
 
 
 def apply_to_fmu(fmu: str | os.PathLike, u: np.ndarray, h: float,
@@ -231,19 +251,14 @@ def apply_to_fmu(fmu: str | os.PathLike, u: np.ndarray, h: float,
     papwc.errors.FmuError
         If the FMU cannot be loaded, has no such variable, or refuses a call.
     """
-    from papwc.errors import FmuError
     from papwc.interrupts import deferred_interrupt
     from papwc.master.fmu import FmuSlave
     from papwc.master.observers import StepGuard
 
     slave = FmuSlave(fmu)
     try:
-        kinds = {name: (v.causality, v.type) for name, v in slave.vars.items()}
-        if kinds.get(force) != ("input", "Real"):
-            raise FmuError(f"{fmu}: has no Real input {force!r} (the force; --force-variable)")
-        if position not in kinds or kinds[position][1] != "Real":
-            raise FmuError(f"{fmu}: has no Real variable {position!r} (the position; "
-                           "--position-variable)")
+        _check_variables({name: (v.causality, v.type) for name, v in slave.vars.items()},
+                         str(fmu), force, position)
         slave.set_start_values(dict(start_values))
         slave.watch([position])
         set_force = slave.input_setter([force])
@@ -260,4 +275,4 @@ def apply_to_fmu(fmu: str | os.PathLike, u: np.ndarray, h: float,
         slave.close()
     n = len(u) + 1
     return Log(np.arange(n) * h, np.append(np.asarray(u, dtype=float), 0.0), np.array(x), None,
-               float(h), str(fmu), Columns())
+               float(h), str(fmu), Columns(position="x"))

@@ -454,8 +454,11 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
     >>> abs(found.plant["f_s"] - 130.0) <= 0.01 * 130.0, found.chosen
     (True, [])
     """
+    from papwc.progress import doing
+
     say = progress or (lambda text: None)
     began = time.perf_counter()
+    doing("finding the moves and rests in the log")
     motion = analyse(log)
     start, rows = regression(log, motion)
     say(f"regression on {rows} sliding triples: m = {start['m']:.6g} kg, f_c = "
@@ -470,6 +473,7 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
     fixed = {"f_s": f_s}
     base_names = ("m", "f_c", "c")
     upper = {"f_c": f_s}
+    doing("output error, Eq. (1): fitting m, f_c, c")
     base = output_error(sim, fixed, base_names, {**start, "f_c": min(start["f_c"], f_s)},
                         upper=upper, label="Eq. (1): m, f_c, c")
     say(f"output error, Eq. (1): rss = {base.rss:.4g} m^2 in {base.seconds:.3g} s")
@@ -488,10 +492,13 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
         names = current.names
         # (From the refit with every parameter free: a trial holds some of them, and a
         # deviation must not be credited with what freeing them gains.)
+        if trial_sim is not sim:
+            doing(f"refitting {current.label} on the trial moves")
         current_here = current if trial_sim is sim else _refit(
             trial_sim, current, bracket, current.label, TRIAL_TOLERANCE)
         results = []
         for dev in candidates:
+            doing(f"trying {dev.name}: {dev.what}")
             trial = _fit_deviation(trial_sim, current_here, dev, bracket)
             extra = len([p for p in dev.parameters if p not in names])
             trial.f_stat, trial.p_value = f_test(current_here, trial, extra,
@@ -518,6 +525,7 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
         chosen.append(dev.name)
         candidates = [d for d in candidates if d is not dev]
         # The chosen model with every parameter free (the trial held some), on every move.
+        doing(f"refitting with {dev.name}, every parameter free, on every move")
         current = _refit(sim, best, bracket, best.label + " (all free, all moves)",
                          FINAL_TOLERANCE)
         trials.append(current)
@@ -557,6 +565,7 @@ def identify(log: Log, deviations: Sequence[str] = ("stribeck", "lag"),
                               motion.resolution, "m", "encoder: smallest step of the position"))
     estimates.append(Estimate("noise_std", motion.noise, math.nan, math.nan, "m",
                               "encoder: scatter of the position at rest"))
+    doing("replaying the log on the identified plant")
     replay_x = replay(log, plant, motion.moved)
     replay_rms = float(np.sqrt(np.mean((replay_x - log.x) ** 2)))
     bound = max(3.0 * motion.resolution, 2.0 * motion.noise, 1e-9)

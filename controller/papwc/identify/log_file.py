@@ -3,9 +3,15 @@
 A log has one row per sample: the time ``t_k`` (s), the force ``u_k`` (N) held from
 ``t_k`` to ``t_{k+1}`` (zero-order hold) and the table position ``x_k`` (m) read at
 ``t_k``; optionally the motor position (m). Units are SI; the column names are options
-(:class:`Columns`). The samples are evenly spaced: every time step must equal the median
-step within :data:`TIME_TOLERANCE` (relative); the sample period ``h`` is then
-``(t_last - t_first)/(rows - 1)``.
+(:class:`Columns`; the position is the plant's ``x_meas``, else ``x``). The header names
+each column once, and every row has one field per column. The samples are evenly spaced:
+every time step must equal the median step within :data:`TIME_TOLERANCE` (relative); the
+sample period ``h`` is then ``(t_last - t_first)/(rows - 1)``, and must be one of a
+machine's log (:data:`papwc.model.maneuver.LOG_SAMPLE_PERIOD`).
+
+Every value is a finite number within the model layer's range of its kind
+(:func:`column_ranges`): a force within the largest any controller applies (``f_p_max``),
+a position within the plant's (``x0``), a time within the longest maneuver (``duration``).
 
 Every problem is one line naming the file, the row (data rows count from 1; the line of
 the file is row + 1), the column, the value and what is allowed (:class:`LogError`).
@@ -17,7 +23,7 @@ import csv
 import io
 import math
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -33,12 +39,14 @@ __all__ = [
     "Log",
     "LogError",
     "check_travel",
+    "column_ranges",
     "parse_log",
     "read_log",
 ]
 
-#: Most data rows of a log (a 1000 s log at 100 Hz).
-MAX_LOG_ROWS = 100_000
+#: Most data rows of a log: a 1000 s log at 100 Hz (100,000 steps, so 100,001 samples),
+#: the longest ``papwc identify --fmu`` writes (``--duration 1000``).
+MAX_LOG_ROWS = 100_001
 #: Fewest rows that can hold a move: a rest (3 samples), the breakaway, 3 samples of
 #: sliding, the stop and a rest (2 samples).
 MIN_LOG_ROWS = 10
@@ -50,18 +58,31 @@ class LogError(IdentifyError):
     """A log cannot be identified: the message names the file, row, column and the problem."""
 
 
+#: The position column read when none is named: the plant's measured output, else ``x``.
+POSITION_COLUMNS = ("x_meas", "x")
+
+
 @dataclass(frozen=True)
 class Columns:
-    """Names of the log's columns (the motor position is optional: None)."""
+    """Names of the log's columns (the motor position is optional: None; the position
+    None: the first of :data:`POSITION_COLUMNS` the header has)."""
 
     time: str = "time"
     force: str = "u"
-    position: str = "x"
+    position: str | None = None
     motor: str | None = None
+
+    def resolved(self, header: list[str]) -> Columns:
+        """These columns with the position named (the default one ``header`` has)."""
+        if self.position is not None:
+            return self
+        found = next((name for name in POSITION_COLUMNS if name in header), POSITION_COLUMNS[0])
+        return replace(self, position=found)
 
     def needed(self) -> list[tuple[str, str]]:
         """(what, column name) of every column to read."""
-        out = [("time", self.time), ("force", self.force), ("position", self.position)]
+        out = [("time", self.time), ("force", self.force),
+               ("position", self.position or POSITION_COLUMNS[0])]
         if self.motor is not None:
             out.append(("motor position", self.motor))
         return out
@@ -126,9 +147,29 @@ def read_log(path: str | os.PathLike, columns: Columns = Columns()) -> Log:
         even, too few or too many rows.
     """
     path = Path(path)
-    text = read_input_text(path, "log", "CSV", LogError, encoding="utf-8-sig",
+    text = read_input_text(path, "log", "CSV", LogError,
                            too_large=f"a log has at most {MAX_LOG_ROWS} rows")
     return parse_log(text, str(path), columns)
+
+
+def column_ranges() -> dict[str, tuple[float, float, str]]:
+    """What a value of each kind of column may be: kind -> (lowest, highest, what), read
+    from the model layer (the force: a controller's force limit ``f_p_max``; a position:
+    the plant's ``x0``; a time: the longest maneuver ``duration``)."""
+    from papwc.model.controller_settings import CONTROLLER_SETTINGS
+    from papwc.model.maneuver import MANEUVER_VARIABLES
+    from papwc.model.plant import PLANT_PARAMETERS
+    from papwc.model.variables import by_name
+
+    force = by_name(CONTROLLER_SETTINGS)["f_p_max"].max
+    x0 = by_name(PLANT_PARAMETERS)["x0"]
+    duration = by_name(MANEUVER_VARIABLES)["duration"].max
+    position = (x0.min, x0.max, f"a position of the plant (its x0), {x0.min:g}..{x0.max:g} m")
+    return {"time": (-duration, duration, f"a time within {-duration:g}..{duration:g} s "
+                                          "(the longest maneuver); start the time near 0"),
+            "force": (-force, force, f"a force within {-force:g}..{force:g} N (the largest "
+                                     "force limit f_p_max of a controller)"),
+            "position": position, "motor position": position}
 
 
 def _number(text: str, where: str) -> float:
@@ -185,6 +226,17 @@ def parse_log(text: str, source: str, columns: Columns = Columns()) -> Log:
     except csv.Error as exc:
         raise LogError(f"{source}, line 1: not CSV: {exc}") from None
     header = [name.strip() for name in header]
+    seen: dict[str, int] = {}
+    for i, name in enumerate(header):
+        if name and name in seen:
+            raise LogError(f"{source}, line 1: column {name!r} is named twice (fields "
+                           f"{seen[name] + 1} and {i + 1}); each column needs its own name")
+        seen[name] = i
+    if columns.position is None and not set(POSITION_COLUMNS) & set(header):
+        raise LogError(f"{source}, line 1: no column 'x_meas' or 'x' (position); the columns "
+                       "are " + ", ".join(repr(n) for n in header)
+                       + "; name the column with the option for the position")
+    columns = columns.resolved(header)
     index = {}
     for what, name in columns.needed():
         if name not in header:
@@ -192,7 +244,10 @@ def parse_log(text: str, source: str, columns: Columns = Columns()) -> Log:
                            + ", ".join(repr(n) for n in header)
                            + "; name the column with the option for the " + what)
         index[name] = header.index(name)
-    names = [name for _, name in columns.needed()]
+    needed = columns.needed()
+    names = [name for _, name in needed]
+    ranges = column_ranges()
+    bounds = [ranges[what] for what, _ in needed]
     values: list[list[float]] = []
     try:
         for row in reader:
@@ -204,13 +259,19 @@ def parse_log(text: str, source: str, columns: Columns = Columns()) -> Log:
                                f"{MAX_LOG_ROWS} rows (shorten it or sample it slower)")
             line = reader.line_num
             cells = []
-            for name in names:
-                i = index[name]
+            for name, (low, high, what) in zip(names, bounds, strict=True):
                 where = f"{source}, row {k + 1} (line {line}), column {name!r}"
-                if i >= len(row):
+                if index[name] >= len(row):
                     raise LogError(f"{where}: missing (the row has {len(row)} of "
                                    f"{len(header)} fields)")
-                cells.append(_number(row[i].strip(), where))
+                value = _number(row[index[name]].strip(), where)
+                if not low <= value <= high:
+                    raise LogError(f"{where}: {value!r} is outside the model layer's range: "
+                                   f"{what}")
+                cells.append(value)
+            if len(row) != len(header):
+                raise LogError(f"{source}, row {k + 1} (line {line}): {len(row)} fields, the "
+                               f"header has {len(header)}; every row has one value per column")
             values.append(cells)
     except csv.Error as exc:
         raise LogError(f"{source}, line {reader.line_num}: not CSV: {exc}") from None
@@ -238,8 +299,25 @@ def parse_log(text: str, source: str, columns: Columns = Columns()) -> Log:
                        f"{h!r} s (uneven time); the log must be sampled evenly (within "
                        f"{TIME_TOLERANCE:g} of the period)")
     h = float((t[-1] - t[0]) / (n - 1))
+    _check_sample_period(h, f"{source}, column {columns.time!r}")
     x_d = data[:, 3].copy() if columns.motor is not None else None
     return Log(t.copy(), data[:, 1].copy(), data[:, 2].copy(), x_d, float(h), source, columns)
+
+
+def _check_sample_period(h: float, where: str) -> None:
+    """Refuse a sample period ``h`` (s) that is not one of a machine's log (LogError)."""
+    from papwc.model.maneuver import LOG_SAMPLE_PERIOD as period
+
+    slack = 1.0 + TIME_TOLERANCE  # h is computed from the times: within their tolerance
+    if period.min / slack <= h <= period.max * slack:
+        return
+    if h > period.max:
+        hint = (f"is the time in milliseconds? (then the period is {h / 1000.0:.6g} s); "
+                "write the time column in seconds")
+    else:
+        hint = "is the time in seconds? write the time column in seconds"
+    raise LogError(f"{where}: the sample period is {h!r} s, outside the "
+                   f"{period.min:g}..{period.max:g} s of a machine's log; {hint}")
 
 
 def check_travel(log: Log, travel: float) -> None:

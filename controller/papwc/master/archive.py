@@ -127,6 +127,8 @@ def _check_contents(zf: zipfile.ZipFile, where: str, error: type[PapwcError],
     total = 0
     for info in infos:
         problem = _name_problem(info.filename)
+        if problem is None:
+            problem = _kind_problem(info)
         if problem is None and info.flag_bits & 0x1:
             problem = "is encrypted"
         if problem is None and info.compress_type not in _METHODS:
@@ -137,6 +139,23 @@ def _check_contents(zf: zipfile.ZipFile, where: str, error: type[PapwcError],
         total += info.file_size
     if total > max_bytes:
         raise error(f"{where}: unpacks to {size_text(total)}; at most {size_text(max_bytes)}")
+
+
+#: Unix file types a member may have (a zip written on Unix keeps the mode): the others
+#: (a symbolic link, a device, a FIFO, a socket) are refused, not unpacked as files.
+_UNIX_KINDS = {stat.S_IFREG: "file", stat.S_IFDIR: "folder", stat.S_IFLNK: "symbolic link",
+               stat.S_IFCHR: "character device", stat.S_IFBLK: "block device",
+               stat.S_IFIFO: "FIFO", stat.S_IFSOCK: "socket"}
+
+
+def _kind_problem(info: zipfile.ZipInfo) -> str | None:
+    """Why a member is not a file or folder (a symbolic link, a device ...), or None."""
+    mode = info.external_attr >> 16
+    kind = stat.S_IFMT(mode)
+    if info.create_system != 3 or kind in (0, stat.S_IFREG, stat.S_IFDIR):
+        return None
+    return (f"is a {_UNIX_KINDS.get(kind, f'file of type {kind:#o}')}; an archive is read "
+            "as regular files and folders only")
 
 
 def _reason(exc: BaseException) -> str:
@@ -182,10 +201,14 @@ def unpack(path: Path, where: str, max_bytes: int = MAX_UNPACKED_BYTES) -> str:
             written = 0
             for info in zf.infolist():
                 target = os.path.join(folder, *PurePosixPath(info.filename).parts)
+                try:
+                    os.makedirs(target if info.is_dir() else os.path.dirname(target),
+                                exist_ok=True)
+                except OSError as exc:  # a member named as a folder another one is in
+                    raise FmuError(f"{where}: cannot unpack member {info.filename!r}: "
+                                   f"{_reason(exc)} (a file and a folder of one name)") from None
                 if info.is_dir():
-                    os.makedirs(target, exist_ok=True)
                     continue
-                os.makedirs(os.path.dirname(target), exist_ok=True)
                 written += _copy_member(zf, info, target, where, written, max_bytes)
         return folder
     except BaseException:

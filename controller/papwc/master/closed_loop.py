@@ -16,12 +16,13 @@ maneuver's measurement noise as a manipulator and a trace observer. Timing
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 from papwc.controllers import CONTROLLER_KINDS, Controller, make_controller
 from papwc.controllers.settings import ControllerSettings
 from papwc.errors import FmuError
+from papwc.interrupts import Terminated
 from papwc.master.algorithm import FixedStepAlgorithm
 from papwc.master.execution import Execution
 from papwc.master.manipulators import MeasurementNoise
@@ -196,7 +197,8 @@ class ClosedLoop:
 
 def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
                     settings: ControllerSettings | None = None, label: str = "",
-                    observers: Sequence[Observer] = ()) -> RunResult:
+                    observers: Sequence[Observer] = (),
+                    stopped: Callable[[RunResult], None] | None = None) -> RunResult:
     """Run all iterations of the maneuver; what the controller learns carries over.
 
     The first iteration initializes both slaves, later ones restart them (the plant from
@@ -220,6 +222,11 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
     observers : sequence of Observer
         Further observers of the execution (see :class:`ClosedLoop`); what they raise ends
         the run.
+    stopped : callable, optional
+        When Ctrl-C or SIGTERM (a KeyboardInterrupt, raised between two steps) stops the
+        run, called first with what was computed: the finished iterations' traces and the
+        cut one (its ``error`` saying where it was cut), ``result.error`` set; the
+        KeyboardInterrupt then goes on.
 
     Returns
     -------
@@ -248,7 +255,20 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
                       motor_encoder=kind is not None and kind.reads_x_d_meas,
                       observers=observers)
     for number in range(1, maneuver.iterations + 1):
-        trace = loop.iteration(number)
+        try:
+            trace = loop.iteration(number)
+        except KeyboardInterrupt as stop:
+            if stopped is not None:
+                cut = loop.observer.cut()
+                what = ("terminated (SIGTERM)" if isinstance(stop, Terminated)
+                        else "interrupted (Ctrl-C)")
+                t = cut.columns["t"][-1] if len(cut) else 0.0
+                cut.error = f"cut short at t = {t!r} s: {what}"
+                if len(cut):
+                    result.traces.append(cut)
+                result.error = f"iteration {number}: {cut.error}"
+                stopped(result)
+            raise
         if trace.error and not len(trace):
             result.error = f"iteration {number}: {trace.error}"
             return result
@@ -261,7 +281,8 @@ def run_closed_loop(plant: Slave, controller: Slave, maneuver: Maneuver,
 
 def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuver,
                    label: str = "", observers: Sequence[Observer] = (),
-                   library=None) -> RunResult:
+                   library=None,
+                   stopped: Callable[[RunResult], None] | None = None) -> RunResult:
     """Run the controller of ``settings`` against ``plant``, over every iteration.
 
     Parameters
@@ -277,6 +298,9 @@ def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuve
         The controller's name in the traces (default: its kind).
     observers : sequence of Observer
         Further observers (see :func:`run_closed_loop`).
+    stopped : callable, optional
+        Given what was computed when Ctrl-C or SIGTERM stops the run (see
+        :func:`run_closed_loop`).
     library : NativeControllerLibrary, optional
         The C controller (:class:`papwc.master.native_controller.NativeControllerLibrary`):
         used for a kind it implements, the Python controller otherwise; the same numbers
@@ -307,7 +331,7 @@ def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuve
         from papwc.master.native_controller import controller_slave
 
         controller = controller_slave(settings, maneuver.T, library)
-    return run_closed_loop(plant, controller, maneuver, settings, label, observers)
+    return run_closed_loop(plant, controller, maneuver, settings, label, observers, stopped)
 
 
 def run_iteration(plant: Slave, controller: Controller | Slave, maneuver: Maneuver,

@@ -264,7 +264,10 @@ class FmuSlave:
             raise FmuError(self._failure(name, _STATUS[exc.status]
                                          if 0 <= exc.status < 5 else exc.status)) from exc
         except Exception as exc:  # fmpy raises plain Exceptions
-            raise FmuError(f"{self.name}: {name} at t = {self.time!r} s failed: {exc}") from exc
+            log = "; ".join(list(self.log)[-5:])  # the FMU's reason (fmi2Instantiate: a GUID)
+            raise FmuError(f"{self.where}: {name} failed: {exc}"
+                           + (f"; FMU log: {log}" if log else " (the FMU logged nothing)")
+                           ) from exc
 
     def _failure(self, name: str, status: Any) -> str:
         if status == "Fatal":

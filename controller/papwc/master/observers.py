@@ -136,6 +136,14 @@ class TraceObserver:
         self._controller_rows.append(self.controller.values)
         self._fill(last_u=math.nan)
 
+    def cut(self) -> Trace:
+        """The trace of a run stopped between two steps (Ctrl-C): the samples so far, the
+        state reached last with force NaN, as :meth:`finished` ends it (no sample if the run
+        stopped before its initialization ended)."""
+        if self._plant_rows and len(self._plant_rows) > len(self._controller_rows):
+            self.finished(0, 0.0)
+        return self.trace
+
     def _fill(self, last_u: float | None = None) -> None:
         """The trace's columns from the rows kept (``last_u``: the force of the last row)."""
         plant_rows, ctrl_rows = self._plant_rows, self._controller_rows

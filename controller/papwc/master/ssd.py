@@ -6,7 +6,9 @@ against the model descriptions of the FMUs it holds, before anything runs:
 - every ``ssd:Component`` (``application/x-fmu-sharedlibrary``) whose
   ``source`` is an FMU in the archive;
 - every ``ssd:Connection`` between two components, from an output to an input
-  of the same type (Real, Integer, Boolean, String);
+  of the same type (Real, Integer, Boolean, String); one connection at most into an
+  input, none from a component into itself; a component name without ``.`` (variables
+  are named ``component.variable``);
 - the parameter bindings: inline ``ssd:ParameterValues`` or an ``.ssv`` file of
   the archive, on a component (names of the FMU's variables) or on the system
   (names ``component.variable``, which take precedence), of types Real,
@@ -15,7 +17,10 @@ against the model descriptions of the FMUs it holds, before anything runs:
   has, a binding to a variable the FMU lacks is an error;
 - the ``ssd:DefaultExperiment`` (start and stop time) and the fixed step of the
   Open Simulation Platform annotation (``osp:FixedStepAlgorithm
-  baseStepSize``) or of OMSimulator's (``oms:FixedStepMaster stepSize``).
+  baseStepSize``) or of OMSimulator's (``oms:FixedStepMaster stepSize``); two that
+  differ are a conflict the run reports (unless ``--step`` decides);
+- a PulseController component whose kind reads the motor encoder (``dual_loop``) has
+  its input ``x_d_meas`` connected.
 
 Every problem raises :class:`papwc.errors.SspError` naming the archive and the
 SSD element. :func:`papwc.master.ssp_runner.run_ssp` runs what it returns.
@@ -31,7 +36,9 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from papwc.errors import SspError
+from papwc.limits import input_path_problem
 from papwc.master import archive as door
+from papwc.model.variables import describe_value
 
 __all__ = ["SspArchive", "SspBinding", "SspComponent", "SspConnection", "SspSystem", "read_ssp"]
 
@@ -101,6 +108,8 @@ class SspSystem:
     stop_time: float | None
     step_size: float | None
     step_source: str
+    #: Two fixed steps that differ (both annotations), as a message; "" if none.
+    step_conflict: str = ""
 
     def outputs(self) -> list[str]:
         """``component.variable`` of every output that can be recorded, in SSD order."""
@@ -154,10 +163,14 @@ def _value(typed: ET.Element, where: str) -> tuple[str, Any]:
     if kind == "Real":
         return kind, _float(text, where, "value")
     if kind == "Integer":
-        try:
-            return kind, int(text)
-        except ValueError:
-            raise SspError(f"{where}: Integer value = {text!r} is not a whole number") from None
+        digits = text.strip().removeprefix("-").removeprefix("+")
+        if not (digits.isascii() and digits.isdigit()):
+            raise SspError(f"{where}: Integer value = {describe_value(text)} is not a whole "
+                           "number")
+        if len(digits) > 20:  # beyond any fmi2Integer; not converted (Python caps str->int)
+            raise SspError(f"{where}: Integer value = {describe_value(text)}: must satisfy "
+                           f"{INT_RANGE[0]} <= value <= {INT_RANGE[1]} (an FMI 2.0 Integer)")
+        return kind, int(text)
     if kind == "Boolean":
         if text not in ("true", "false", "1", "0"):
             raise SspError(f"{where}: Boolean value = {text!r}: must be true, false, 1 or 0")
@@ -170,8 +183,11 @@ class SspArchive:
 
     def __init__(self, path: Path) -> None:
         self.path = path
-        if not path.is_file():
+        problem = input_path_problem(path)
+        if problem == "no such file":
             raise SspError(f"{path}: no such SSP file")
+        if problem is not None:
+            raise SspError(f"{path}: {problem}; give an SSP archive (a .ssp zip file)")
         self.zip = door.open_zip(path, str(path), SspError, what="SSP archive")
         self.names = {info.filename: info for info in self.zip.infolist()}
 
@@ -292,7 +308,8 @@ def _bind(component: SspComponent, variable: str, typed: ET.Element, where: str)
             what = ("an FMI 2.0 Integer" if (low, high) == tuple(map(float, INT_RANGE))
                     else "the FMU's declared range")
             unit = f" {unit}" if unit else ""
-            raise SspError(f"{where}: {component.name}.{variable} = {value!r}{unit}: must "
+            raise SspError(f"{where}: {component.name}.{variable} = {describe_value(value)}{unit}: "
+                           "must "
                            f"satisfy {_bound(low, typ)} <= {variable} <= {_bound(high, typ)}{unit} "
                            f"({what})")
     component.start_values[variable] = float(value) if typ == "Real" else value
@@ -349,6 +366,10 @@ def _read_system(path: Path, archive: SspArchive) -> SspSystem:
             raise SspError(f"{here}: type {kind!r} is not supported; supported: {_FMU_TYPE}")
         if not name or not source:
             raise SspError(f"{here}: a component needs a name and a source")
+        if "." in name:
+            raise SspError(f"{here}: a component name cannot hold '.' (variables are named "
+                           f"component.variable, so {name}.x could not be told apart); rename "
+                           "it")
         if name in components:
             raise SspError(f"{here}: a second component named {name!r}")
         member = archive.member(source)
@@ -389,6 +410,7 @@ def _read_system(path: Path, archive: SspArchive) -> SspSystem:
                            + ", ".join(components))
         _bind(components[owner], variable, typed, at)
     connections = []
+    into: dict[tuple[str, str], str] = {}
     for element in system.findall("ssd:Connections/ssd:Connection", _NS):
         here = f"{where} {_tag(element)}"
         ends = []
@@ -414,8 +436,17 @@ def _read_system(path: Path, archive: SspArchive) -> SspSystem:
         if t_out != t_in:
             raise SspError(f"{here}: {start}.{output} is a {t_out}, {end}.{input_} a {t_in}: "
                            "a connection joins variables of one type")
+        if start == end:
+            raise SspError(f"{here}: connects component {start!r} to itself; a connection "
+                           "joins two components")
+        if (end, input_) in into:
+            raise SspError(f"{here}: {end}.{input_} has a connection already, "
+                           f"{into[(end, input_)]}; an input takes one connection")
+        into[(end, input_)] = _tag(element)
         connections.append(SspConnection(start, output, end, input_, _tag(element)))
+    _motor_encoder_connected(where, components, into)
     start_time, stop_time, step, step_source = 0.0, None, None, ""
+    steps: list[tuple[str, float]] = []
     experiment = root.find("ssd:DefaultExperiment", _NS)
     if experiment is not None:
         here = f"{where} <ssd:DefaultExperiment>"
@@ -425,13 +456,41 @@ def _read_system(path: Path, archive: SspArchive) -> SspSystem:
             stop_time = _time(experiment.get("stopTime"), here, "stopTime")
         osp = experiment.find(".//osp:FixedStepAlgorithm", _NS)
         if osp is not None and osp.get("baseStepSize") is not None:
-            step = _float(osp.get("baseStepSize"), f"{here} <osp:FixedStepAlgorithm>",
-                          "baseStepSize")
-            step_source = "osp:FixedStepAlgorithm baseStepSize"
-    if step is None:
-        oms = system.find("ssd:Annotations//oms:FixedStepMaster", _NS)
-        if oms is not None and oms.get("stepSize") is not None:
-            step = _float(oms.get("stepSize"), f"{where} <oms:FixedStepMaster>", "stepSize")
-            step_source = "oms:FixedStepMaster stepSize"
+            steps.append(("osp:FixedStepAlgorithm baseStepSize", _float(
+                osp.get("baseStepSize"), f"{here} <osp:FixedStepAlgorithm>", "baseStepSize")))
+    oms = system.find("ssd:Annotations//oms:FixedStepMaster", _NS)
+    if oms is not None and oms.get("stepSize") is not None:
+        steps.append(("oms:FixedStepMaster stepSize",
+                      _float(oms.get("stepSize"), f"{where} <oms:FixedStepMaster>", "stepSize")))
+    conflict = ""
+    if steps:
+        step_source, step = steps[0]
+        if any(value != step for _, value in steps[1:]):
+            conflict = (f"{where}: the fixed step is given twice and differently, "
+                        + " and ".join(f"{source} = {value!r} s" for source, value in steps)
+                        + "; make them equal or give --step")
     return SspSystem(path, system.get("name") or root.get("name") or path.stem, components,
-                     connections, start_time, stop_time, step, step_source)
+                     connections, start_time, stop_time, step, step_source, conflict)
+
+
+def _motor_encoder_connected(where: str, components: dict[str, SspComponent],
+                             into: dict[tuple[str, str], str]) -> None:
+    """Refuse a PulseController component whose kind reads the motor encoder (the dual loop)
+    with its input ``x_d_meas`` unconnected: it would read 0 m and stop without a word."""
+    from papwc.controllers import CONTROLLER_KINDS
+    from papwc.model.controller_settings import CONTROLLER_SETTINGS, kind_from_code
+
+    defaults = {v.name: v.default for v in CONTROLLER_SETTINGS}
+    for name, component in components.items():
+        variables = component.variables
+        if not {"kind", "kind_code", "x_d_meas"} <= set(variables) or (
+                variables["x_d_meas"][0] != "input"):
+            continue  # not a PulseController
+        bound = component.start_values
+        kind, _ = kind_from_code(str(bound.get("kind", defaults["kind"])),
+                                 int(bound.get("kind_code", 0)), "kind" in bound)
+        reads = getattr(CONTROLLER_KINDS.get(kind), "reads_x_d_meas", False)
+        if reads and (name, "x_d_meas") not in into:
+            raise SspError(f"{where} {component.element}: kind {kind!r} reads the motor "
+                           f"encoder, but {name}.x_d_meas has no ssd:Connection (it would read "
+                           f"0 m); connect the plant's x_d_meas to {name}.x_d_meas")

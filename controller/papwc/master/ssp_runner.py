@@ -49,6 +49,8 @@ def _check_experiment(system: SspSystem, step: float | None, stop: float | None,
     t1 = system.stop_time if stop is None else float(stop)
     h = system.step_size if step is None else float(step)
     where = f"{system.path}"
+    if step is None and system.step_conflict:
+        raise SspError(system.step_conflict)
     if h is None:
         raise SspError(f"{where}: the SSD gives no fixed step (osp:FixedStepAlgorithm or "
                        "oms:FixedStepMaster): give --step")

@@ -14,6 +14,7 @@ from typing import Any
 from .variables import Constraint, Variable, problems
 
 __all__ = [
+    "LOG_SAMPLE_PERIOD",
     "MANEUVER_CONSTRAINTS",
     "MANEUVER_DEFAULTS",
     "MANEUVER_VARIABLES",
@@ -41,6 +42,14 @@ MANEUVER_VARIABLES: tuple[Variable, ...] = (
     Variable("noise_seed", "Seed of the measurement noise", "", 0, type="Integer",
              min=-(2**63), max=2**63 - 1),
 )
+
+#: The sample period of a measured machine's log that ``papwc identify`` fits, and of the
+#: excitation it designs (``--T``): within the range of ``T``, and that of a positioning
+#: machine's controller (1 MHz to 10 Hz; the plant's dynamics, m/c = 0.2 s and a breakaway
+#: within one sample, must be resolved). A longer one most likely is a time column in
+#: milliseconds (a 10 ms period reads 10).
+LOG_SAMPLE_PERIOD = Variable("h", "Sample period of a measured log (papwc identify)", "s",
+                             0.01, min=1e-6, max=0.1)
 
 
 def _duration_at_least_T(values: Mapping[str, Any]) -> tuple[str, str] | None:

@@ -262,9 +262,26 @@ class Constraint:
     check: Callable[[Mapping[str, Any]], tuple[str, str] | None]
 
 
+#: Longest value quoted whole in a message, characters; a longer one is shortened to its
+#: start and its length (a 5000-digit number or a megabyte of text in one line helps nobody).
+MESSAGE_VALUE_CHARS = 60
+
+
 def describe_value(value: Any) -> str:
-    """A value as written in messages (``repr``; whole floats keep their ``.0``)."""
-    return repr(value)
+    """A value as written in messages: ``repr`` (whole floats keep their ``.0``); a longer
+    text or a larger integer than :data:`MESSAGE_VALUE_CHARS` shortened, e.g.
+    ``'7777777777...' (5000 characters)``, ``1234567890123... (4300 digits)``."""
+    if isinstance(value, int) and not isinstance(value, bool) and (
+            value.bit_length() > 3.33 * MESSAGE_VALUE_CHARS):
+        digits = int(math.log10(abs(value))) + 1
+        if abs(value) < 10 ** (digits - 1):  # log10 rounded up at a power of ten
+            digits -= 1
+        head = abs(value) // 10 ** (digits - 20)
+        return f"{'-' if value < 0 else ''}{head}... ({digits} digits)"
+    text = repr(value)
+    if isinstance(value, str) and len(text) > MESSAGE_VALUE_CHARS:
+        return f"{value[:MESSAGE_VALUE_CHARS - 20]!r}... ({len(value)} characters)"
+    return text
 
 
 def _num(x: float) -> str:

@@ -5,7 +5,9 @@ controller's traces, then its rows of ``summary.csv`` (and of ``pulses.csv``:
 every pulse with its no-runaway bound), as the controller finishes (every file
 atomically), and the plots at the end. While a run is under way, and after one
 that was interrupted or failed, the folder holds a file ``INCOMPLETE`` that
-says what is missing; it is removed once everything is written. A new run into
+says what is missing; it is removed once everything is written. A controller that
+Ctrl-C or SIGTERM stops keeps the traces it computed (:meth:`ResultsFolder.add_cut`),
+the last one cut short, as ``INCOMPLETE`` says (it has no summary rows). A new run into
 a used folder first removes the files an earlier run wrote there
 (``summary.csv``, ``pulses.csv``, ``trace_*_it*.csv``, the plots,
 ``INCOMPLETE``), nothing else.
@@ -132,6 +134,8 @@ class ResultsFolder:
         self.written: list[str] = []
         #: The controller being written and what of it is on disk (until it all is).
         self._partial: tuple[str, list[str]] | None = None
+        #: The controller a stop cut short and its traces on disk (:meth:`add_cut`).
+        self._cut: tuple[str, list[str]] | None = None
 
     def start(self) -> None:
         """Create and lock the folder, remove what an earlier run wrote there, mark it
@@ -177,7 +181,7 @@ class ResultsFolder:
 
     def _missing(self) -> list[str]:
         done = {r.label for r in self.results}
-        part = self._partial[0] if self._partial is not None and self._partial[1] else None
+        part = next((p[0] for p in (self._partial, self._cut) if p is not None and p[1]), None)
         return ([f"controller {label} (" + ("the rest of its files" if label == part else
                                             f"traces and {self._rows_written}") + ")"
                  for label in self.labels if label not in done]
@@ -186,9 +190,10 @@ class ResultsFolder:
     def _mark(self, reason: str) -> None:
         done = [f"controller {r.label}: {len(r.traces)} trace(s) and {self._rows_written}"
                 for r in self.results]
-        if self._partial is not None and self._partial[1]:
-            label, parts = self._partial
-            done.append(f"controller {label} in part: {', '.join(parts)}")
+        for partial in (self._partial, self._cut):
+            if partial is not None and partial[1]:
+                label, parts = partial
+                done.append(f"controller {label} in part: {', '.join(parts)}")
         text = [f"This folder is incomplete: {reason}.", ""]
         text += ["Written:"] + [f"- {d}" for d in done] if done else ["Written: nothing yet."]
         text += ["", "Missing:"] + [f"- {m}" for m in self._missing()] + [""]
@@ -218,6 +223,21 @@ class ResultsFolder:
         self.results.append(result)
         self._mark(f"{self.what} is under way or was stopped")
 
+    def add_cut(self, result: RunResult) -> None:
+        """Write the traces of a controller that Ctrl-C or SIGTERM stopped (the last cut
+        short: ``result.error`` says where); ``INCOMPLETE`` names them. No summary rows: the
+        controller did not finish. Never raises (the run is being stopped)."""
+        parts: list[str] = []
+        self._cut = (result.label, parts)
+        try:
+            for tr in result.traces:
+                name = trace_name(result.label, tr.iteration)
+                tr.to_csv(self.out / name)
+                self.written.append(name)
+                parts.append(f"{name} ({tr.error})" if tr.error else name)
+        except (OSError, KeyboardInterrupt):  # a second Ctrl-C, a full disk: keep what is
+            pass
+
     def finish(self, plots: bool = True) -> list[dict]:
         """Write the plots and remove ``INCOMPLETE``; return the summary rows."""
         if plots:
@@ -245,10 +265,13 @@ class ResultsFolder:
         missing = [label for label in self.labels if label not in kept]
         partial = (f" ({self._partial[0]} in part)" if self._partial is not None
                    and self._partial[1] else "")
+        cut = (f"; the traces of {self._cut[0]} until the stop are kept" if self._cut is not None
+               and self._cut[1] else "")
         return (f"kept in {self.out}: "
                 + (f"the results of {', '.join(kept)}" if kept else "no finished controller")
                 + partial
                 + (f"; missing: {', '.join(missing)}" if missing else "")
+                + cut
                 + f"; the plots were not written{marked}")
 
 
