@@ -32,8 +32,8 @@ EXAMPLES = [
     "    --input-file scenarios/pulse_in.csv --output-file pulse_out.csv",
     "papwc run scenarios/paper.toml --out results/paper",
     "papwc cosim build/ClosedLoop.ssp",
-    'eval "$(papwc hostenv)"\necos simulate --path build/ClosedLoop.ssp --stepSize 0.01 '
-    "--stopTime 2 --parameterSet scenario",
+    "ecos simulate --path build/ClosedLoop.ssp --stepSize 0.01 --stopTime 2 "
+    "--parameterSet scenario",
 ]
 
 

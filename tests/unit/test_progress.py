@@ -90,7 +90,7 @@ def test_the_native_build_says_what_it_compiles_and_once_that_zig_starts_empty(
                     f"win64, darwin64 into {tmp_path / 'empty-cache'}: a few minutes, once; "
                     "later builds take seconds"]
     for platform, target in (("linux64", "x86_64-linux-gnu.2.17"),
-                             ("win64", "x86_64-windows-gnu"), ("darwin64", "x86_64-macos"),
-                             ("darwin64", "aarch64-macos")):
+                             ("win64", "x86_64-windows-gnu"), ("darwin64", "x86_64-macos.10.13"),
+                             ("darwin64", "aarch64-macos.11.0")):
         assert lines.count(f"papwc build: compiling Plant.fmu's C sources for {platform} "
                            f"({target}) with zig") == 2

@@ -227,7 +227,8 @@ def build_fmu(name: str, out_dir: Path, backend: str = DEFAULT_BACKEND) -> Path:
     if r.uses_native(backend):
         from papwc.fmubuild.native_build import build_native
 
-        progress.doing(f"building {name}.fmu (C, compiled by zig)")
+        progress.doing(f"building {name}.fmu (C: the binaries compiled when papwc was installed, "
+                       "or by zig if its sources changed since)")
         return build_native(r.native_source(), out_dir)
     progress.doing(f"building {name}.fmu with pythonfmu")
     return build_pythonfmu(r.source(), out_dir)

@@ -137,10 +137,14 @@ def binaries(tree: Path, name: str, more: Flags | None = None,
     BuildError
         If they must be compiled and zig is missing or fails.
     """
+    from papwc import progress
     from papwc.fmubuild.native_build import compile_binaries
 
     if take(tree, name, native_dir, more):
+        progress.doing(f"taking {name}'s binaries compiled when papwc was installed")
         return list(_files(tree, name).values())
+    progress.doing(f"{name}'s C sources differ from those papwc was installed with: "
+                   "compiling them")
     return compile_binaries(tree, name, dict(more) if more else None)
 
 
