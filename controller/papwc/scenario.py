@@ -10,6 +10,8 @@ The schema (public; extend it, don't rename it)::
     [[controller]]   # one table per controller; settings of papwc.model.controller_settings
     kind = "papwc"   # "pwc", "papwc", "exact"
     label = "..."    # optional name in results (default: kind and t_p_max)
+    [identified]     # only in a plant.toml of papwc identify: intervals and the stiction
+                     # band (papwc.identify.plant_model; papwc run --plant-model reads it)
 
 Every field may be left out and takes the default of its table in the model
 layer (:mod:`papwc.model.plant`, :mod:`papwc.model.maneuver`,
@@ -63,8 +65,9 @@ __all__ = [
 PLANT_FIELDS: dict[str, Any] = {name: PLANT_DEFAULTS[name] for name in SCENARIO_PLANT_FIELDS}
 #: ``[maneuver]`` fields.
 MANEUVER_FIELDS: tuple[str, ...] = tuple(MANEUVER_DEFAULTS)
-#: Top-level fields of a scenario file.
-TOP_LEVEL = ("name", "description", "plant", "maneuver", "controller")
+#: Top-level fields of a scenario file (``identified``: what ``papwc identify`` found beside
+#: the ``[plant]`` values it wrote, :mod:`papwc.identify.plant_model`; a run does not read it).
+TOP_LEVEL = ("name", "description", "plant", "maneuver", "controller", "identified")
 
 
 @dataclass
@@ -278,6 +281,10 @@ def parse_scenario(data: dict, source: str, allow: tuple[str, ...] = ()) -> Scen
     description = data.get("description", "")
     if not isinstance(description, str):
         raise ScenarioError(f"{source}: field 'description' = {description!r}: must be a string")
+    if "identified" in data:
+        from papwc.identify.plant_model import check_identified
+
+        check_identified(data["identified"], source)
 
     plant_in = _table(source, data, "plant")
     _check_fields(source, "[plant]", plant_in, PLANT_FIELDS)

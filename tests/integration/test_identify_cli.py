@@ -126,8 +126,9 @@ def test_options_that_do_not_go_together_are_refused(tmp_path, capsys, friction_
     out = tmp_path / "id"
     assert main(["identify", "--design", "--fmu", "p.fmu", "--out", str(out)]) == 2
     assert "give exactly one of LOG.csv, --design and --fmu" in capsys.readouterr().err
-    assert main(["identify", "--design", "--out", str(out), "--deviations", "ripple"]) == 2
-    assert "unknown deviation 'ripple'" in capsys.readouterr().err
+    assert main(["identify", "--design", "--out", str(out), "--deviations", "lugre"]) == 2
+    assert ("unknown deviation 'lugre'; allowed: stribeck, lag, ripple or none"
+            in capsys.readouterr().err)
     assert main(["identify", "--design", "--out", str(out), "--expect", "f_s=50"]) == 2
     assert "--expect: f_s = 50.0 N: must be >= f_c" in capsys.readouterr().err
     assert main(["identify", "--fmu", str(friction_plant_fmu), "--start-values", "mass=3",
@@ -286,9 +287,10 @@ def test_the_fit_says_what_it_tries_while_it_runs(tmp_path, capsys, monkeypatch)
     err = capsys.readouterr().err.splitlines()
     for name in ("stribeck",):
         start = err.index(next(line for line in err
-                               if line.startswith(f"papwc identify: trying {name}: ")))
+                               if line.startswith("papwc identify: fitting every deviation "
+                                                  f"tried at once: {name}")))
         end = err.index(next(line for line in err
-                             if line.startswith(f"papwc identify: tried {name}: ")))
+                             if line.startswith(f"papwc identify: tested {name}: ")))
         assert start < end
     assert any(line.endswith("s so far)") for line in err), err
     assert "\r" not in "".join(err)  # no terminal status line off a terminal

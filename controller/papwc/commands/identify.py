@@ -11,8 +11,9 @@ from pathlib import Path
 
 from papwc.identify import DESIGN_DURATION, DESIGN_F_P_MAX, DESIGN_T, DESIGN_TRAVEL
 
-HELP = ("identify the friction plant (m, f_c, f_s, c and the deviations the data support) "
-        "from a log of force and position, design the excitation, or identify a plant FMU")
+HELP = ("identify the friction plant (m, f_c, f_s, c, the deviations the data support and the "
+        "stiction band) from a log of force and position, design the excitation, or identify a "
+        "plant FMU")
 
 EPILOG = """\
 examples:
@@ -108,9 +109,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     columns.add_argument("--motor-column", default=None, metavar="NAME",
                          help="motor position (read and checked; the flexible drive is not "
                               "fitted)")
-    parser.add_argument("--deviations", default="stribeck,lag", metavar="LIST",
-                        help="deviations to try, comma-separated: stribeck, lag (default: both), "
-                             "or none")
+    parser.add_argument("--deviations", default="stribeck,lag,ripple", metavar="LIST",
+                        help="deviations to try, comma-separated: stribeck, lag, ripple "
+                             "(default: all three), or none")
 
 
 def _check(args: argparse.Namespace) -> tuple[str, tuple[str, ...]]:
@@ -159,7 +160,7 @@ def _check(args: argparse.Namespace) -> tuple[str, tuple[str, ...]]:
 
 def run(args: argparse.Namespace) -> int:
     """Identify a log, design the excitation, or identify an FMU; return 0."""
-    from papwc.identify.excitation import apply_to_fmu, check_fmu, design
+    from papwc.identify.excitation import apply_to_fmu, check_fmu, design_plan
     from papwc.identify.fit import check_log, identify
     from papwc.identify.fit_report import (
         IdentifyFolder,
@@ -182,9 +183,10 @@ def run(args: argparse.Namespace) -> int:
         # The master reads the FMU's log and says a refusal itself, in one line.
         os.environ["PAPWC_FMU_STDERR"] = "0"
         check_fmu(args.fmu, args.start_values, args.force_variable, args.position_variable)
-    u = None
+    u = plan = None
     if mode != "LOG.csv":
-        u = design(args.T, args.f_p_max, args.travel, args.duration, args.expect)
+        plan = design_plan(args.T, args.f_p_max, args.travel, args.duration, args.expect)
+        u = plan.u
     planned = {"--design": ["excitation.csv"],
                "--fmu": ["excitation.csv", "log.csv"], "LOG.csv": []}[mode]
     if mode != "--design":
@@ -199,8 +201,10 @@ def run(args: argparse.Namespace) -> int:
             if u is not None:
                 write_excitation(folder.out / "excitation.csv", u, args.T)
                 folder.wrote("excitation.csv")
+                top = float(abs(u).max())
                 print(f"wrote {folder.out / 'excitation.csv'}: {u.size} samples of "
-                      f"{args.T:g} s ({u.size * args.T:.4g} s), |u| <= {float(abs(u).max()):.6g} N")
+                      f"{args.T:g} s ({u.size * args.T:.4g} s), |u| <= {top:.6g} N: "
+                      f"{plan.summary()}")
             if mode == "--fmu":
                 folder.mark("papwc identify is applying the excitation to the FMU")
                 progress.doing(f"applying the excitation to {args.fmu}: {u.size} steps of "
@@ -222,6 +226,12 @@ def run(args: argparse.Namespace) -> int:
                 for e in ident.estimates:
                     print(f"{e.name:<13} {e.value:>14.6g}  [{e.low:.6g}, {e.high:.6g}] {e.unit}")
                 print("deviations chosen: " + (", ".join(ident.chosen) or "none"))
+                if ident.band is not None:
+                    b = ident.band
+                    print(f"stiction band: breakaways seen {b.lowest:.6g} to {b.highest:.6g} N "
+                          f"({b.sticks}); the next draws within {b.low:.6g} to {b.high:.6g} N")
+                else:
+                    print("stiction band: none (too few breakaways from rest; see report.md)")
                 print(f"replay rms {ident.replay_rms:.3g} m (bound {ident.replay_bound:.3g} m); "
                       f"identified in {ident.seconds:.3g} s")
                 print(f"wrote plant.toml, identified.csv, report.md and figures in {folder.out}")

@@ -3,11 +3,15 @@
 A log of a machine (time, force held over each sample, table position) is read and checked
 (:mod:`.log_file`); the motion in it is told apart from the rests and the encoder's count and
 noise are estimated (:mod:`.motion`); ``m``, ``f_c``, ``c`` are started by linear regression on
-the sliding samples, ``f_s`` is bracketed by the rests, then everything is refined by output
-error through :class:`papwc.model.dynamics.Plant` with the force replayed, and the deviations
-the data support are added (:mod:`.fit`). :mod:`.excitation` designs the force to apply to a
-machine and applies it to a plant or an FMU; :mod:`.fit_report` writes ``plant.toml``,
-``identified.csv``, ``report.md`` and its figures.
+the sliding samples, then refined by output error on the moves from rest, simulated through
+the model layer's plant (:mod:`.simulate`) with the force replayed, and the deviations the
+data support are added -- the Stribeck curve, the actuator lag and the friction ripple, whose
+wavelength is searched (:mod:`.ripple`) -- with the stiction band of the breakaways
+(:mod:`.band`) (:mod:`.fit`). :mod:`.excitation` designs the force to apply to a machine and
+applies it to a plant or an FMU; :mod:`.fit_report` writes ``plant.toml`` (with the
+``[identified]`` table of :mod:`.plant_model`, which ``papwc run --plant-model`` and the
+battery's ``identify_first`` give the controllers), ``identified.csv``, ``report.md`` and its
+figures.
 
 Examples
 --------

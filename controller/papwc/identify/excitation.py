@@ -4,20 +4,27 @@ The design (:func:`design`), for an expected plant (``m``, ``f_c``, ``f_s``, ``c
 may be off by up to :data:`SPREAD` (+-50 %) in each parameter, is a force per sample:
 
 1. a rest of :data:`LEAD_SAMPLES` samples;
-2. a staircase of one-sample pulses whose heights rise geometrically by
-   :data:`LEVEL_RATIO` from ``0.4*f_s`` to ``min(f_p_max, 1.6*f_s)``, alternately
-   positive and negative (the plant is symmetric: each direction tests every other
-   level), each followed by a rest long enough for every plant within the spread to
-   stop: the largest height that held the table and the smallest that moved it bracket
-   the breakaway force to one step of the staircase;
-3. repeated until ``duration``: pulses of :data:`SLIDE_HEIGHTS` heights and
-   :data:`SLIDE_WIDTHS` widths (samples), each followed by its mirror image, with rests
-   in between: sliding at many speeds and accelerations, for ``m``, ``f_c`` and ``c``
-   and the deviations. A width whose move would exceed half the travel on some plant
-   within the spread is left out.
+2. :data:`TEETH` *teeth*, each followed by one sliding pulse of the walk (3.): a tooth is a
+   staircase of one-sample pulses whose heights rise geometrically by :data:`TOOTH_RATIO`
+   from ``TOOTH_LOW*f_s`` to ``min(f_p_max, TOOTH_HIGH*f_s)``, alternately positive and
+   negative (the plant is symmetric), each followed by :data:`TOOTH_GAP` sample(s) of no
+   force, then a rest long enough for every plant within the spread to stop. A tooth starts
+   on a stuck table and rises until it breaks it away: each tooth brackets the breakaway force
+   of one stick (the draw of random stiction, :mod:`papwc.model.effects.stiction`, at the
+   place the walk left the table), and the band of those draws (:mod:`.band`) needs
+   :func:`papwc.identify.band.sticks_needed` of them. The teeth's levels are staggered by
+   ``1/TEETH`` of a step from one tooth to the next, so that together they bracket a fixed
+   breakaway force far finer than one step;
+3. then, until ``duration``, the *walk*: single pulses of :data:`WALK_HEIGHTS` heights and
+   :data:`WALK_WIDTHS` widths (samples) in turn, each from rest and followed by a rest
+   long enough for every plant within the spread to stop, all in one direction until the
+   plant of the spread that moves farthest would pass ``0.8*travel``, then back: sliding at
+   many speeds and accelerations over many places, for ``m``, ``f_c``, ``c`` and the
+   deviations, the friction ripple's wavelength among them (:mod:`.ripple`). A width whose
+   move would exceed a quarter of the travel on some plant within the spread is left out.
 
-Each move is followed by its mirror image, so the table stays near its start; the design
-is refused if any plant within the spread would leave ``+-travel``.
+The design is refused if any plant within the spread would leave ``+-travel``, or if the
+duration does not hold the teeth and two rounds of the walk's pulses.
 """
 
 from __future__ import annotations
@@ -26,6 +33,7 @@ import itertools
 import math
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -38,29 +46,90 @@ from papwc.model.stickslip import step as exact_step
 
 __all__ = [
     "LEAD_SAMPLES",
-    "LEVEL_RATIO",
-    "SLIDE_HEIGHTS",
-    "SLIDE_WIDTHS",
     "SPREAD",
+    "TEETH",
+    "TOOTH_GAP",
+    "TOOTH_HIGH",
+    "TOOTH_LOW",
+    "TOOTH_RATIO",
+    "WALK_HEIGHTS",
+    "WALK_WIDTHS",
+    "Design",
     "apply_to_fmu",
     "apply_to_plant",
     "check_fmu",
     "design",
+    "design_plan",
     "excitation_rows",
 ]
 
 #: Relative spread of each expected parameter the design holds for (+-50 %).
 SPREAD = 0.5
-#: Ratio of two heights of the staircase: the breakaway force is bracketed to 0.4 %.
-LEVEL_RATIO = 1.004
+#: Ratio of two levels of a tooth: a tooth brackets the breakaway of its stick to 1 %.
+TOOTH_RATIO = 1.01
+#: A tooth rises from this fraction of the expected f_s ...
+TOOTH_LOW = 0.6
+#: ... to this one (or f_p_max): the breakaway drawn within +-15 % of f_s on a friction
+#: ripple of +-15 %, through an actuator lag of up to half the sample period (whose force
+#: reaches 1 - exp(-2) of one sample's height), with a margin.
+TOOTH_HIGH = 1.6
+#: Samples of no force after each level of a tooth.
+TOOTH_GAP = 1
 #: Samples at rest at the start.
 LEAD_SAMPLES = 10
-#: Heights of the sliding pulses, as fractions of the way from the staircase's top to f_p_max.
-SLIDE_HEIGHTS = (0.0, 0.5, 1.0)
-#: Widths of the sliding pulses, samples.
-SLIDE_WIDTHS = (2, 5, 10, 20, 40)
+#: Heights of the walk's pulses, as fractions of the way from the teeth's top to f_p_max.
+WALK_HEIGHTS = (0.0, 0.5, 1.0)
+#: Widths of the walk's pulses, samples.
+WALK_WIDTHS = (1, 2, 3, 5, 8, 12)
 #: Samples of rest after the slowest plant has stopped.
 REST_MARGIN = 4
+#: The walk turns back where the plant of the spread that moves farthest would pass this
+#: fraction of the travel.
+WALK_TURN = 0.8
+
+
+def _teeth() -> int:
+    from papwc.identify.band import sticks_needed
+
+    return sticks_needed()
+
+
+#: Teeth of the design: the sticks the band needs (:func:`papwc.identify.band.sticks_needed`).
+TEETH = _teeth()
+
+
+@dataclass(frozen=True)
+class Design:
+    """What :func:`design_plan` makes: the force and where its parts are.
+
+    Attributes
+    ----------
+    u : ndarray
+        Force per sample, N.
+    h : float
+        Sample period, s.
+    teeth : int
+        Teeth (sticks bracketed for the band).
+    teeth_end : int
+        Sample where the teeth (with their walk pulses between them) end.
+    levels : int
+        Levels of one tooth.
+    walk_pulses : int
+        Pulses of the walk, those between the teeth included.
+    """
+
+    u: np.ndarray
+    h: float
+    teeth: int
+    teeth_end: int
+    levels: int
+    walk_pulses: int
+
+    def summary(self) -> str:
+        """One line: the design's parts and their durations."""
+        return (f"{self.teeth} teeth of {self.levels} one-sample levels (the stiction band "
+                f"needs {self.teeth} sticks) in the first {self.teeth_end * self.h:.4g} s, "
+                f"{self.walk_pulses} sliding pulses in all, {self.u.size * self.h:.4g} s")
 
 
 def _corners(expected: Mapping[str, float]) -> list[tuple[float, float, float]]:
@@ -100,52 +169,73 @@ def design(h: float, f_p_max: float, travel: float, duration: float,
         Expected ``m`` (kg), ``f_c``, ``f_s`` (N), ``c`` (N.s/m); default: the plant's
         defaults (Table 1).
 
+    Returns
+    -------
+    ndarray
+        ``round(duration/h)`` forces, N (:func:`design_plan` says where its parts are).
+
     Raises
     ------
     IdentifyError
         If the design cannot be made: f_p_max does not exceed the lowest breakaway,
         the travel is too short for the moves, or the duration too short for the
-        staircase and one round of sliding pulses.
+        teeth and two rounds of the walk's pulses.
     """
+    return design_plan(h, f_p_max, travel, duration, expected).u
+
+
+def design_plan(h: float, f_p_max: float, travel: float, duration: float,
+                expected: Mapping[str, float] | None = None) -> Design:
+    """:func:`design`, with where its parts are (:class:`Design`); the same parameters."""
     p = {k: float(PLANT_DEFAULTS[k]) for k in ("m", "f_c", "f_s", "c")}
     p.update(expected or {})
-    f_lo = 0.4 * p["f_s"]
-    f_hi = min(f_p_max, (1.0 + SPREAD + 0.1) * p["f_s"])
+    f_lo = TOOTH_LOW * p["f_s"]
+    f_hi = min(f_p_max, TOOTH_HIGH * p["f_s"])
     if not f_p_max > (1.0 + 0.1) * p["f_s"]:
         raise IdentifyError(f"--f-p-max {f_p_max!r} N: must exceed 1.1*f_s = "
                             f"{1.1 * p['f_s']!r} N (the expected breakaway) to move the table")
     corners = _corners(p)
-    levels = [f_lo * LEVEL_RATIO**j for j in range(
-        int(math.log(f_hi / f_lo) / math.log(LEVEL_RATIO)) + 2)]
-    levels[-1] = f_hi
-    # Rests after a one-sample pulse at the top of the staircase.
+    levels = int(math.log(f_hi / f_lo) / math.log(TOOTH_RATIO)) + 1
+    # The rest after a tooth: a one-sample pulse at its top on the slowest plant.
     worst = [_move([f_hi], h, *corner) for corner in corners]
-    rest_a = max(k for _, k in worst) + REST_MARGIN
-    if max(d for d, _ in worst) > travel / 2.0:
+    rest_tooth = max(k for _, k in worst) + REST_MARGIN
+    if max(d for d, _ in worst) > travel / 4.0:
         raise IdentifyError(f"--travel {travel!r} m: too short for one pulse of {f_hi:.6g} N "
                             f"over one sample ({max(d for d, _ in worst):.3g} m on a plant "
                             "within +-50 % of the expected one); give a longer travel")
-    u: list[float] = [0.0] * LEAD_SAMPLES
-    for j, level in enumerate(levels):
-        u += [level if j % 2 == 0 else -level] + [0.0] * rest_a
-    heights = sorted({f_hi + s * (f_p_max - f_hi) for s in SLIDE_HEIGHTS})
-    cycle: list[float] = []
-    for width in SLIDE_WIDTHS:
+    heights = sorted({f_hi + s * (f_p_max - f_hi) for s in WALK_HEIGHTS})
+    kinds: list[tuple[int, float, float, int]] = []
+    for width in WALK_WIDTHS:
         for height in heights:
             moves = [_move([height] * width, h, *corner) for corner in corners]
-            if max(d for d, _ in moves) > travel / 2.0:
+            far = max(d for d, _ in moves)
+            if far > travel / 4.0:
                 continue
-            rest = max(k for _, k in moves) + REST_MARGIN
-            cycle += [height] * width + [0.0] * rest + [-height] * width + [0.0] * rest
-    if not cycle:
+            kinds.append((width, height, far, max(k for _, k in moves) + REST_MARGIN))
+    if not kinds:
         raise IdentifyError(f"--travel {travel!r} m: too short for the sliding pulses; give a "
                             "longer travel")
+    walk = _Walk(kinds, WALK_TURN * travel)
+    u: list[float] = [0.0] * LEAD_SAMPLES
+    for tooth in range(TEETH):
+        for i in range(levels):
+            level = min(f_lo * TOOTH_RATIO ** (i + tooth / TEETH), f_hi)
+            u += [level if i % 2 == 0 else -level] + [0.0] * TOOTH_GAP
+        u += [0.0] * rest_tooth
+        u += walk.pulse()
+    teeth_end = len(u)
     n = int(round(duration / h))
-    if len(u) + len(cycle) > n:
-        raise IdentifyError(f"--duration {duration!r} s: too short; the staircase and one round "
-                            f"of sliding pulses take {(len(u) + len(cycle)) * h:.4g} s")
-    while len(u) + len(cycle) <= n:
-        u += cycle
+    rounds = 2 * len(kinds) - TEETH
+    need = teeth_end + sum(walk.peek(j) for j in range(max(rounds, 0)))
+    if need > n:
+        raise IdentifyError(f"--duration {duration!r} s: too short; the {TEETH} teeth the "
+                            f"stiction band needs and two rounds of the sliding pulses take "
+                            f"{need * h:.4g} s")
+    while True:
+        piece = walk.pulse()
+        if len(u) + len(piece) > n:
+            break
+        u += piece
     u += [0.0] * (n - len(u))
     out = np.array(u, dtype=float)
     for corner in corners:
@@ -158,7 +248,33 @@ def design(h: float, f_p_max: float, travel: float, duration: float,
             raise IdentifyError(f"--travel {travel!r} m: a plant within +-50 % of the expected "
                                 f"one would move {far:.3g} m from the start; give a longer "
                                 "travel or a lower --f-p-max")
-    return out
+    return Design(out, float(h), TEETH, teeth_end, levels, walk.count - 1)
+
+
+class _Walk:
+    """The walk's pulses in turn, one direction until the farthest plant would pass ``turn``
+    (m), then back."""
+
+    def __init__(self, kinds: list[tuple[int, float, float, int]], turn: float) -> None:
+        self.kinds = kinds
+        self.turn = turn
+        self.count = 0
+        self.far = 0.0
+        self.direction = 1.0
+
+    def peek(self, j: int) -> int:
+        """Samples of the ``j``-th pulse from now (with its rest)."""
+        width, _, _, rest = self.kinds[(self.count + j) % len(self.kinds)]
+        return width + rest
+
+    def pulse(self) -> list[float]:
+        """The next pulse and its rest (forces, N)."""
+        width, height, far, rest = self.kinds[self.count % len(self.kinds)]
+        self.count += 1
+        if abs(self.far + self.direction * far) > self.turn:
+            self.direction = -self.direction
+        self.far += self.direction * far
+        return [self.direction * height] * width + [0.0] * rest
 
 
 def excitation_rows(u: np.ndarray, h: float) -> list[dict[str, float]]:
@@ -239,12 +355,13 @@ def check_fmu(fmu: str | os.PathLike, start_values: Mapping[str, Any], force: st
 
 def apply_to_fmu(fmu: str | os.PathLike, u: np.ndarray, h: float,
                  start_values: Mapping[str, Any], force: str = "u",
-                 position: str = "x_meas") -> Log:
+                 position: str = "x_meas", unzip_dir: str | os.PathLike | None = None) -> Log:
     """Apply the force ``u`` to an FMI 2.0 Co-Simulation FMU and log it.
 
     The FMU gets ``start_values``, is initialized at t = 0 and stepped by ``h`` with
     ``force`` (a Real input) held over each step; ``position`` (a Real output) is read at
     every communication point. Ctrl-C stops it between two steps (KeyboardInterrupt).
+    ``unzip_dir``: an extracted copy of the FMU to use (a battery worker's).
 
     Raises
     ------
@@ -255,7 +372,7 @@ def apply_to_fmu(fmu: str | os.PathLike, u: np.ndarray, h: float,
     from papwc.master.fmu import FmuSlave
     from papwc.master.observers import StepGuard
 
-    slave = FmuSlave(fmu)
+    slave = FmuSlave(fmu, unzip_dir=unzip_dir)
     try:
         _check_variables({name: (v.causality, v.type) for name, v in slave.vars.items()},
                          str(fmu), force, position)

@@ -113,7 +113,11 @@ def write_log(path: Path, log: Log) -> None:
 
 
 def plant_toml(ident: Identification) -> str:
-    """The scenario file of the identified plant (TOML text)."""
+    """The scenario file of the identified plant (TOML text): its ``[plant]`` table, and the
+    ``[identified]`` table of :mod:`papwc.identify.plant_model` (intervals, the band)."""
+    import json
+
+    from papwc.identify.plant_model import IDENTIFIED, plant_model_of
     from papwc.model.maneuver import MANEUVER_DEFAULTS
     from papwc.model.plant import SCENARIO_PLANT_FIELDS
 
@@ -127,13 +131,26 @@ def plant_toml(ident: Identification) -> str:
             lines.append(f"{name} = {float(ident.plant[name])!r}")
     lines += ["", "[maneuver]", f"T = {h!r}", f"duration = {duration!r}", "",
               "[[controller]]", 'kind = "papwc"', ""]
-    return "\n".join(lines)
+    model = plant_model_of(ident, ident.log.source)
+    lines += ["# What papwc identify found beside the [plant] values: 95 % intervals and the",
+              "# stiction band (breakaway forces, N, the ripple's factor removed); papwc run",
+              "# --plant-model gives the controllers this plant.",
+              f"[{IDENTIFIED}]", f"log = {json.dumps(ident.log.source)}",
+              f"sample_period = {h!r}",
+              "chosen = [" + ", ".join(json.dumps(c) for c in model.chosen) + "]",
+              f"cpu_s = {model.cpu_s!r}", "", f"[{IDENTIFIED}.intervals]"]
+    lines += [f"{name} = [{low!r}, {high!r}]" for name, (low, high) in model.intervals.items()]
+    if model.band is not None:
+        lines += ["", f"[{IDENTIFIED}.band]"]
+        lines += [f"{name} = {value!r}" for name, value in model.band.items()]
+    return "\n".join(lines) + "\n"
 
 
 def write_identification(folder: IdentifyFolder, ident: Identification, command: str) -> None:
     """identified.csv, plant.toml, the figures and report.md, each recorded as written."""
     import tomllib
 
+    from papwc.identify.plant_model import check_identified
     from papwc.scenario import parse_scenario
 
     out = folder.out
@@ -142,7 +159,9 @@ def write_identification(folder: IdentifyFolder, ident: Identification, command:
     write_rows(out / "identified.csv", rows, IDENTIFIED_COLUMNS)
     folder.wrote("identified.csv")
     text = plant_toml(ident)
-    parse_scenario(tomllib.loads(text), str(out / "plant.toml"))  # it loads, or this is a bug
+    data = tomllib.loads(text)  # it loads as a plant model, or this is a bug
+    parse_scenario(data, str(out / "plant.toml"))
+    check_identified(data["identified"], str(out / "plant.toml"))
     write_text(out / "plant.toml", text)
     folder.wrote("plant.toml")
     for name in _figures(out, ident):
@@ -255,16 +274,22 @@ def report_text(ident: Identification, command: str) -> str:
         f"{ident.regression_rows} runs of three sliding intervals: m = "
         f"{ident.start['m']:.6g} kg, f_c = {ident.start['f_c']:.6g} N, c = "
         f"{ident.start['c']:.6g} N.s/m.",
-        f"3. Breakaway: the largest force held at rest was {b.low:.6g} N"
+        f"3. Rests: the largest force held at rest was {b.low:.6g} N"
         + (f" (row {b.low_k + 1})" if b.low_k >= 0 else " (none held: f_c)")
-        + f", the smallest that moved the table {b.high:.6g} N (row {b.high_k + 1}).",
-        "4. Output error: every move simulated from its rest through "
-        "`papwc.model.dynamics.Plant` with the logged force replayed; "
+        + f", the smallest that moved the table {b.high:.6g} N (row {b.high_k + 1}); the "
+        "stiction band is below.",
+        f"4. Output error: the {ident.sliding_moves} sliding moves (pulses from rest well "
+        "above every force the table held) simulated from their rests through the model "
+        "layer's plant (its C twin where papwc has it) with the logged force replayed; "
         "`scipy.optimize.least_squares`; 95 % intervals from the Jacobian at the optimum "
         "(Student's t).",
-        "5. Deviations: each is fitted on top of the model chosen so far and added when "
-        "the F-test of the nested models has p < 0.01 and its parameters' intervals "
-        "exclude 0.",
+        "5. Deviations: the Stribeck curve, the lag and the friction ripple (its wavelength "
+        "searched over a grid first) are fitted together, each then tested against the "
+        "model without it (every other parameter free): kept when the F-test of the nested "
+        "models has p < 0.01 and its parameters' intervals exclude 0, the least "
+        "significant dropped first. Where the model depends on where a stick breaks away "
+        "(Stribeck, a lag), it is fitted once more with each sliding move at its own draw "
+        "of random stiction.",
         "", "## Deviations tried", "",
         "| model | residual sum of squares (m^2) | samples | F | p | chosen | why |",
         "|---|---|---|---|---|---|---|",
@@ -277,6 +302,36 @@ def report_text(ident: Identification, command: str) -> str:
                                 "none (Eq. (1) explains the log within its noise)") + ".", "",
               "Not tried:"]
     lines += [f"- {name}: {why}" for name, why in NOT_TRIED if name not in tried]
+    if ident.ripple_peaks:
+        lines += ["", "The friction ripple's wavelength, searched over a grid (the share of the "
+                  "residual of Eq. (1) a ripple of that wavelength removes, to first order):", "",
+                  "| wavelength (mm) | amplitude | phase (rad) | share |", "|---|---|---|---|"]
+        lines += [f"| {p.wavelength * 1e3:.6g} | {p.amplitude:.4g} | {p.phase:.4g} | "
+                  f"{p.share:.2%} |" for p in ident.ripple_peaks]
+    lines += ["", "## Stiction band", ""]
+    if ident.band is None:
+        lines.append("None: too few breakaways from rest by a one-sample pulse (see Notes).")
+    else:
+        from papwc.identify.band import COVERAGE, NEXT_DRAWS
+
+        b = ident.band
+        near = sum(1 for br in ident.breakaways if br.low > 0.0)
+        lines += [
+            f"Breakaway forces (N, the ripple's factor removed): {b.sticks} draws, {near} of "
+            "them from one-sample pulses just above a force the stick held (the force at "
+            "which each broke away: where the identified plant moves as far as the table "
+            "did, or the bracket's middle on Eq. (1)), the others the sliding moves' own "
+            "draws, placed by those.", "",
+            "| | N |", "|---|---|",
+            f"| lowest seen | {b.lowest:.6g} |", f"| highest seen | {b.highest:.6g} |",
+            f"| the band for the next draws: low | {b.low:.6g} |",
+            f"| the band for the next draws: high | {b.high:.6g} |",
+            f"| f_s (its middle) | {b.f_s:.6g} [{b.f_s_low:.6g}, {b.f_s_high:.6g}] |",
+            f"| f_s_spread | {b.spread:.4g} [{b.spread_low:.4g}, {b.spread_high:.4g}] |", "",
+            f"The band for the next draws holds the next {NEXT_DRAWS} draws all together with "
+            f"probability {COVERAGE:g} where the draws are uniform (as random stiction draws "
+            f"them): it extends {b.factor:.3g} times the range seen beyond each end "
+            f"(papwc.identify.band)."]
     if ident.notes:
         lines += ["", "Notes:"] + [f"- {note}" for note in ident.notes]
     verdict = "within" if ident.replay_rms <= ident.replay_bound else "NOT within"

@@ -3,7 +3,9 @@
 The position difference ``dx_k = x_{k+1} - x_k`` of each sample interval is compared with
 a threshold set by the encoder: :data:`NOISE_FACTOR` times the standard deviation of the
 differences at rest and :data:`COUNT_FACTOR` counts of the encoder. That deviation is first
-1.4826 times the median absolute deviation of all differences, then the standard deviation
+1.4826 times the median absolute deviation of the differences after the most samples
+without force of :data:`FORCE_FREE` that leave :data:`MIN_POOL` of them (of all, if none
+do), then the standard deviation
 of the differences inside the rests so found (outliers beyond 4 deviations trimmed), and the
 rests are found again with it. The table is at
 rest at sample ``k`` when the :data:`REST_INTERVALS` intervals before it did not move; a
@@ -41,6 +43,10 @@ COUNT_FACTOR = 1.5
 NOISE_FLOOR = 1e-12
 #: Intervals without motion before a sample at rest.
 REST_INTERVALS = 2
+#: Samples without force after which the table is taken to have stopped, tried in turn for
+#: the first estimate of the noise, and the fewest intervals that estimate is made of.
+FORCE_FREE = (20, 10, 5, 3)
+MIN_POOL = 20
 
 
 @dataclass
@@ -100,14 +106,18 @@ def _resolution(x: np.ndarray, dx: np.ndarray) -> float:
     if steps.size == 0:
         return 0.0
     q0 = float(steps.min())
+    span = float(x.max() - x.min())
     for divisor in (1, 2, 3, 4):
         q = q0 / divisor
+        # The count refined from the largest span of positions first: the smallest step,
+        # a difference of two positions, is off by their rounding, which x/q multiplies
+        # by the number of counts (a tenth of a count at 3e5 counts of 0.1 um).
+        n = round(span / q)
+        if n > 0:
+            q = span / n
         counts = x / q
         if np.max(np.abs(counts - np.round(counts))) < 1e-6 and np.max(np.abs(counts)) < 2**50:
-            # Refine the count from the largest span of positions.
-            span = float(x.max() - x.min())
-            n = round(span / q)
-            return span / n if n > 0 else q
+            return q
     return 0.0
 
 
@@ -149,8 +159,17 @@ def analyse(log: Log) -> Motion:
     x = log.x
     dx = np.diff(x)
     q = _resolution(x, dx)
-    deviation = np.abs(dx - np.median(dx))
-    scatter = 1.4826 * float(np.median(deviation))
+    # The scatter of the differences at rest: 1.4826 times their median absolute deviation,
+    # over the intervals after the most samples without force (of FORCE_FREE) that leave at
+    # least MIN_POOL of them (the table has stopped there, or most of it), else over all.
+    zero = (log.u[:-1] == 0.0).astype(int)
+    pool = dx
+    for samples in FORCE_FREE:
+        free = np.convolve(zero, np.ones(samples, dtype=int), "full")[:dx.size] >= samples
+        if np.count_nonzero(free) >= MIN_POOL:
+            pool = dx[free]
+            break
+    scatter = 1.4826 * float(np.median(np.abs(pool - np.median(pool))))
     noise = float(np.sqrt(max(scatter**2 / 2.0 - q * q / 12.0, 0.0)))
     threshold = max(NOISE_FACTOR * scatter, COUNT_FACTOR * q)
     moved = np.abs(dx) > threshold

@@ -33,7 +33,8 @@ from papwc.model.dynamics import STATE_FIELDS
 from papwc.model.plant import PLANT_DEFAULTS, PLANT_OUTPUTS, PLANT_PARAMETERS
 
 __all__ = ["API_SYMBOL", "API_VERSION", "NativePlant", "NativePlantLibrary",
-           "NativePlantError", "api_table", "layout_struct", "plant_library"]
+           "NativePlantError", "api_table", "layout_struct", "own_plant_library",
+           "plant_library"]
 
 #: The exported function that returns the table of the plant's functions.
 API_SYMBOL = "papwc_plant_api"
@@ -218,6 +219,31 @@ def plant_library(unzip_dir: str | os.PathLike | None) -> NativePlantLibrary | N
         path = binary_path(unzip_dir)
         _FOUND[key] = None if path is None else _load(str(path))
     return _FOUND[key]
+
+
+@functools.lru_cache(maxsize=1)
+def own_plant_library() -> NativePlantLibrary | None:
+    """The C plant papwc was installed with (``papwc/_native/FrictionPlant/``), where it was
+    compiled from FrictionPlant's C sources as they are now, or None (the caller uses
+    :class:`papwc.model.dynamics.Plant`, the same numbers). Looked at once per process."""
+    from fmpy import platform, sharedLibraryExtension
+
+    from papwc.fmubuild.fmus import FMUS
+    from papwc.fmubuild.native_build import prepared_tree
+    from papwc.fmubuild.prebuilt import DIGEST_FILE, NATIVE_DIR, sources_digest
+
+    recipe = next((r for r in FMUS if r.name == "FrictionPlant" and r.native), None)
+    home = NATIVE_DIR / "FrictionPlant"
+    binary = home / platform / ("FrictionPlant" + sharedLibraryExtension)
+    if recipe is None or not binary.is_file():
+        return None
+    try:
+        recorded = (home / DIGEST_FILE).read_text(encoding="ascii").strip()
+        with prepared_tree(recipe.native_source()) as tree:
+            current = sources_digest(tree)
+    except (OSError, ValueError):
+        return None
+    return _load(str(binary)) if recorded == current else None
 
 
 #: What :func:`plant_library` found in each extracted FMU of this process.
