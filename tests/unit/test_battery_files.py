@@ -59,6 +59,7 @@ BASE = 'name = "b"\n[[controller]]\nkind = "papwc"\n'
         ('[monte_carlo]\nn = 2\n', "[monte_carlo]"),
         ('[battery]\nsuccess_tolerance = -1.0\n', "success_tolerance"),
         ('[battery]\ntolerance = 1.0\n', "tolerance"),
+        ('[battery]\nidentify_first = 1\n', "'identify_first' = 1: must be true or false"),
         ('[plant]\nf_s = 50.0\n', "f_s"),
     ],
 )
@@ -141,3 +142,33 @@ def test_robustness_battery_file_is_valid():
         for table in r.data["controller"]:
             assert 0.8 <= table["m_est"] / plant["m"] <= 1.2
             assert 0.8 <= table["f_c_est"] / plant["f_c"] <= 1.2
+
+
+def test_identify_first_is_read_and_changes_the_runs_hashes_only_when_on(tmp_path):
+    off = plan_runs([load_battery(write(tmp_path, BASE, "off.toml"))])
+    on_battery = load_battery(write(tmp_path, BASE + "[battery]\nidentify_first = true\n",
+                                    "on.toml"))
+    assert on_battery.identify_first
+    on = plan_runs([on_battery])
+    assert [r.run_id for r in on] == [r.run_id for r in off]
+    assert all(a.run_hash != b.run_hash for a, b in zip(on, off, strict=True))
+    explicit = load_battery(write(tmp_path, BASE + "[battery]\nidentify_first = false\n",
+                                  "false.toml"))
+    assert [r.run_hash for r in plan_runs([explicit])] == [r.run_hash for r in off]
+
+
+def test_identify_first_refuses_a_plant_it_cannot_excite():
+    from papwc.battery.identify_first import check_excitable
+
+    good = {"u": ("input", "Real"), "x_meas": ("output", "Real")}
+    check_excitable("b.toml", good, {0.01})
+    with pytest.raises(ScenarioError) as info:
+        check_excitable("b.toml", {"u": ("input", "Real")}, {0.01})
+    assert str(info.value) == (
+        "b.toml: [battery] identify_first = true: the plant FMU has no Real output 'x_meas' to "
+        "apply the excitation through (force u) and read the table by (x_meas); give "
+        "FrictionPlant.fmu or set identify_first = false")
+    with pytest.raises(ScenarioError, match=r"b.toml: \[battery\] identify_first = true: "
+                                            r"maneuver.T = 0.5 s: the excitation's sample "
+                                            r"period must be"):
+        check_excitable("b.toml", good, {0.5})

@@ -71,7 +71,13 @@ run past it stops (between two communication steps) and is recorded with
 status ``error`` and the message ``timed out: ...``; a local worker still busy
 10 s later is killed and replaced (on Dask the limit is kept inside the run:
 Dask cannot stop a task that does not return). ``--resume`` computes a timed
-out run again.
+out run again. ``identify_first`` (true or false, default false): each run's table is
+identified first -- the excitation of ``papwc identify --design`` applied to it through its
+encoder, another seed for its random draws -- and its controllers are given the identified
+plant in place of their told values (``m_est``, ``f_c_est``, ``c_est`` and the stiction
+band, where their kind reads them; :mod:`.identify_first`); a table is identified once per
+worker process, and ``identified.csv`` holds what was identified of each run's table beside
+its own values, with the processor time it took.
 
 Bounds, checked before any run: the runs of the batteries together and the
 grid points of a sweep (``--max-runs``, default 100000), the communication
@@ -127,11 +133,15 @@ Outputs of :func:`run_battery` in the output folder:
 - ``summary.md`` -- per battery (and case) and controller: success rate, median,
   95th percentile and maximum of ``|final error|``, pulses and settle time, in the
   last iteration; then the spec table (``spec.csv``).
+- ``identified.csv`` -- with ``[battery] identify_first``: per run, the identified plant,
+  the stiction band, the deviations chosen and the identification's processor time
+  (``cpu_s``), and the table's own values (``table.<name>``).
 - ``final_error_<battery>.png`` -- distribution (empirical CDF) of ``|final error|``
   per controller on a log axis.
 
 Its modules: :mod:`.schema` (the file), :mod:`.plan` (cases, grid and draws), :mod:`.worker`
-(one run), :mod:`.engines` (local processes, Dask) and :mod:`.dask_cluster`, :mod:`.journal`,
+(one run; :mod:`.identify_first` its table identified first), :mod:`.engines` (local
+processes, Dask) and :mod:`.dask_cluster`, :mod:`.journal`,
 :mod:`.report` (the files above) and :mod:`.orchestrate` (:func:`run_battery`: plan, journal,
 engine, report).
 """

@@ -82,7 +82,8 @@ def _sha256(path: Path) -> str:
 #: Modules whose code computes a run in a worker (their digest keys the journal).
 _RESULT_CODE = ("model", "controllers", "master", "scenario_run.py", "scenario.py",
                 "results/summary.py", "results/pulses.py", "results/quantum.py",
-                "battery/worker.py", "battery/plan.py")
+                "battery/worker.py", "battery/plan.py", "battery/identify_first.py",
+                "identify")
 
 
 def code_digest() -> str:
@@ -219,6 +220,15 @@ def run_battery(
     except FmuError as exc:
         raise BatteryError(str(exc)) from None
     runs = plan_runs(batteries, max_runs=max_runs, max_steps=max_steps)
+    for battery in batteries:
+        if battery.identify_first:
+            from papwc.battery.identify_first import check_excitable
+            from papwc.battery.plan import get_field
+
+            periods = {float(get_field(s.data, "maneuver.T")) for s in runs
+                       if s.battery == battery.name and not s.error}
+            check_excitable(battery.source, {v.name: (v.causality, v.type)
+                                             for v in md.modelVariables}, periods)
     offsets = {b.seed_offset for b in batteries}
     digest = _sha256(fmu)
     identity = md.guid
@@ -275,6 +285,8 @@ def run_battery(
                 battery = by_name[spec.battery]
                 out = {**spec.task(battery.source), "key": key,
                        "timeout": battery.run_timeout}
+                if battery.identify_first:
+                    out["identify_first"] = True
                 if controller_fmu is not None:
                     out["controller_fmu"] = str(Path(controller_fmu).resolve())
                 return out

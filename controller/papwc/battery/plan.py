@@ -179,10 +179,15 @@ def _shift_seeds(battery: Battery, data: dict, where: str) -> None:
 
 
 def _run_hash(battery: Battery, data: dict) -> str:
-    """The run's hash: of its data, and of the seed offset when there is one."""
-    if not battery.seed_offset:
+    """The run's hash: of its data, and of the seed offset and identify_first when set."""
+    if not battery.seed_offset and not battery.identify_first:
         return _hash(data)
-    return _hash({"data": data, "seed_offset": battery.seed_offset})
+    extra: dict = {"data": data}
+    if battery.seed_offset:
+        extra["seed_offset"] = battery.seed_offset
+    if battery.identify_first:
+        extra["identify_first"] = True
+    return _hash(extra)
 
 
 def check_size(batteries: list[Battery], max_runs: int = MAX_RUNS) -> None:

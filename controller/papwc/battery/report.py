@@ -279,10 +279,39 @@ def plot_final_errors(battery: Battery, rows: list[dict], path: Path) -> None:
     save_figure(fig, path, dpi=110)
 
 
+#: The table's own values that identified.csv puts beside the identified ones.
+IDENTIFIED_TRUTH = ("m", "f_c", "f_s", "c", "f_s_spread", "v_s", "tau_u", "ripple",
+                    "ripple_period", "ripple_phase", "x_resolution", "noise_std", "seed")
+
+
+def identified_rows(runs: list[RunSpec], records: dict, has_cases: bool) -> list[dict]:
+    """Rows of identified.csv (batteries with ``identify_first``): per run, what was
+    identified of its table (the identified values, the band, the deviations chosen, the
+    processor time of the identification, whether another run's was taken), then the
+    table's own values (``table.<name>``)."""
+    out = []
+    for spec in runs:
+        rec = records[(spec.battery, spec.run_id)]
+        found = rec.get("identified")
+        if found is None:
+            continue
+        row = {"battery": spec.battery, "run_id": spec.run_id, "run_hash": spec.run_hash}
+        if has_cases:
+            row["case"] = spec.case
+        row.update({"table_key": found.get("key", ""), "cached": bool(found.get("cached")),
+                    "error": found.get("error", "")})
+        row.update({k: v for k, v in found.items() if k not in ("key", "cached", "error")})
+        plant = {**PLANT_FIELDS, **spec.data.get("plant", {})}
+        row.update({f"table.{name}": plant[name] for name in IDENTIFIED_TRUTH})
+        out.append(row)
+    return out
+
+
 def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], records: dict,
                   fmu_sha256: str) -> list[Path]:
     """Write results.csv, runs.csv, pulses.csv, spec.csv, summary.md and the plots from the
-    records (each file atomically)."""
+    records (each file atomically); identified.csv where a battery identifies its tables
+    first."""
     from papwc.output_files import write_rows, write_text
 
     rows = result_rows(batteries, runs, records)
@@ -314,6 +343,10 @@ def write_outputs(out: Path, batteries: list[Battery], runs: list[RunSpec], reco
     run_columns += list(dict.fromkeys(k for r in run_rows for k in r if k not in run_columns))
     write_rows(paths[1], run_rows, run_columns)
     write_text(paths[2], summary_markdown(batteries, runs, rows, fmu_sha256, spec_table))
+    identified = identified_rows(runs, records, has_cases)
+    if identified:
+        paths.append(out / "identified.csv")
+        write_rows(paths[-1], identified, list(dict.fromkeys(k for r in identified for k in r)))
     for battery in batteries:
         png = out / f"final_error_{battery.name}.png"
         plot_final_errors(battery, rows, png)

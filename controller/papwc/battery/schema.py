@@ -101,6 +101,10 @@ class Battery:
     seed_offset : int
         Added to every seed of the runs (``papwc battery --seed-offset``): the draws' ``seed``,
         each run's ``plant.seed`` and ``maneuver.noise_seed`` (0: the file's own).
+    identify_first : bool
+        ``[battery] identify_first``: each run's table is identified first (the excitation
+        applied to it through its encoder, :mod:`papwc.battery.identify_first`) and its
+        controllers are given the identified plant in place of their told values.
     """
 
     name: str
@@ -116,6 +120,7 @@ class Battery:
     success_tolerance: float | None = None
     run_timeout: float = DEFAULT_RUN_TIMEOUT
     seed_offset: int = 0
+    identify_first: bool = False
 
     @property
     def grid_points(self) -> int:
@@ -263,6 +268,12 @@ def parse_battery(data: dict, source: str) -> Battery:
     if not isinstance(opts, dict):
         raise ScenarioError(f"{source}: [battery] must be a table")
     for key, value in opts.items():
+        if key == "identify_first":
+            if not isinstance(value, bool):
+                raise ScenarioError(f"{source}: [battery] field 'identify_first' = {value!r}: "
+                                    "must be true or false")
+            battery.identify_first = value
+            continue
         if key == "run_timeout":
             if not (is_number(value) and 0.0 < value <= MAX_RUN_TIMEOUT):
                 raise ScenarioError(f"{source}: [battery] field 'run_timeout' = {value!r}: "
@@ -271,7 +282,7 @@ def parse_battery(data: dict, source: str) -> Battery:
             continue
         if key != "success_tolerance":
             raise ScenarioError(f"{source}: [battery] unknown field {key!r}; allowed: "
-                                "success_tolerance, run_timeout")
+                                "success_tolerance, run_timeout, identify_first")
         if not (is_number(value) and math.isfinite(value) and 0.0 <= value <= 1.0):
             raise ScenarioError(f"{source}: [battery] field 'success_tolerance' = {value!r}: "
                                 "must satisfy 0 <= success_tolerance <= 1 m")

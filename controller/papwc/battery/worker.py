@@ -107,6 +107,13 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
         record["key"] = task["key"]
     try:
         scenario = parse_scenario(task["data"], f"{task['source']} run {task['run_id']}")
+        if task.get("identify_first"):
+            problem = _identify_first(scenario, fmu_path, unzip_dir, record)
+            if problem:
+                record.update(status="error", message=problem)
+                record["elapsed_s"] = time.perf_counter() - start
+                record["cpu_s"] = time.process_time() - cpu_start
+                return record
         results = run_scenario(scenario, "fmu", fmu_path, unzip_dir=unzip_dir,
                                timeout=task.get("timeout"),
                                library=fmu_controller_library(task.get("controller_fmu")))
@@ -142,6 +149,33 @@ def execute_run(task: dict, fmu_path: str, unzip_dir: str) -> dict:
     record["elapsed_s"] = time.perf_counter() - start
     record["cpu_s"] = time.process_time() - cpu_start  # (journal only: papwc bench reads it)
     return record
+
+
+def _identify_first(scenario, fmu_path: str, unzip_dir: str, record: dict) -> str:
+    """Identify the run's table (:mod:`papwc.battery.identify_first`) and give its
+    controllers the identified plant; what was identified goes into ``record``. Returns ""
+    or why the run cannot run (one line)."""
+    from papwc.battery.identify_first import identified_table, model_of
+    from papwc.controllers import CONTROLLER_KINDS
+    from papwc.master.native_plant import plant_library
+
+    T = scenario.maneuver.T
+    found = identified_table(scenario.plant, T, fmu_path, unzip_dir, plant_library(unzip_dir))
+    record["identified"] = {k: v for k, v in found.items() if k != "model"}
+    if "error" in found:
+        return found["error"]
+    model = model_of(found)
+    record["identified"].update(model.record())
+    for i, (settings, label) in enumerate(zip(scenario.controllers, scenario.labels,
+                                              strict=True)):
+        given = model.settings(settings, T)
+        problems = given.problems(tuple(CONTROLLER_KINDS))
+        if problems:
+            name, message = problems[0]
+            return (f"identify_first: controller {label}: the identified plant gives it "
+                    f"{name}: {message}")
+        scenario.controllers[i] = given
+    return ""
 
 
 def pulse_rows(traces, bound) -> list[dict]:

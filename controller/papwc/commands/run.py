@@ -14,6 +14,7 @@ HELP = "run a scenario file (TOML) and write summary.csv, traces and plots"
 EPILOG = """examples:
   papwc run scenarios/paper.toml --out results/paper
   papwc run scenarios/long_move.toml --plant physics
+  papwc run scenarios/realism.toml --plant-model id/plant.toml   # told what papwc identify found
 
 each controller's traces and summary rows are written as it finishes; until
 everything is written (and after Ctrl-C or an error) DIR holds a file
@@ -37,6 +38,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_fmu_option(parser)
     add_max_steps(parser)
     add_controllers_option(parser)
+    parser.add_argument("--plant-model", default=None, metavar="PLANT.toml",
+                        help="give every controller the plant papwc identify wrote in "
+                             "PLANT.toml (its [plant] and [identified] tables) in place of "
+                             "what the scenario tells it: m_est, f_c_est, c_est and the "
+                             "stiction band (f_b_floor, f_b_step), where its kind reads them; "
+                             "the plant run is the scenario's")
 
 
 def add_controllers_option(parser: argparse.ArgumentParser) -> None:
@@ -81,6 +88,9 @@ def run(args: argparse.Namespace) -> int:
         raise PapwcError(f"--fmu {args.fmu}: --plant physics runs the in-process physics and "
                          "loads no FMU; give --fmu with --plant fmu (the default) only")
     scenario = load_scenario(args.scenario)
+    if args.plant_model is not None:
+        told = given_plant_model(scenario, args.plant_model)
+        print(f"papwc run: {told}", file=sys.stderr)
     m = scenario.maneuver
     check_steps(str(args.scenario), len(scenario.controllers), m.iterations, m.duration, m.T,
                 args.max_steps)
@@ -105,3 +115,37 @@ def run(args: argparse.Namespace) -> int:
     for r in failed:
         print(f"error: {r.label}: {r.error}")
     return 1 if failed else 0
+
+
+def given_plant_model(scenario, path: str) -> str:
+    """Give ``scenario``'s controllers the plant model of ``path`` (``--plant-model``, see
+    :meth:`papwc.identify.plant_model.PlantModel.settings`); one line saying what they were
+    given.
+
+    Raises
+    ------
+    ScenarioError
+        If ``path`` is not a plant model, or a controller's settings with it are not valid
+        (naming the file, the controller and the setting).
+    """
+    from papwc.controllers import CONTROLLER_KINDS
+    from papwc.errors import ScenarioError
+    from papwc.identify.plant_model import REPLACED, read_plant_model
+
+    model = read_plant_model(path)
+    T = scenario.maneuver.T
+    given = []
+    for i, (settings, label) in enumerate(zip(scenario.controllers, scenario.labels,
+                                              strict=True)):
+        new = model.settings(settings, T)
+        problems = new.problems(tuple(CONTROLLER_KINDS))
+        if problems:
+            name, message = problems[0]
+            raise ScenarioError(f"--plant-model {path}: controller {label} of "
+                                f"{scenario.source}: the identified plant gives it {name}: "
+                                f"{message}")
+        scenario.controllers[i] = new
+        given.append(f"{label} (" + ", ".join(
+            f"{name} = {new.get(name):.6g}" for name in REPLACED
+            if name in new.field_names() and new.get(name) != settings.get(name)) + ")")
+    return f"the plant identified in {path} given to " + "; ".join(given)
