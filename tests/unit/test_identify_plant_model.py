@@ -110,3 +110,23 @@ def test_a_scenario_with_a_bad_identified_table_is_refused_by_the_run_too(tmp_pa
     with pytest.raises(ScenarioError, match="the band must have low <= lowest_seen"):
         load_scenario(path)
     assert load_scenario(_write(tmp_path, GOOD)).plant["m"] == 151.0
+
+
+def test_a_controller_the_identified_plant_does_not_fit_is_refused_naming_it(tmp_path):
+    from papwc.scenario import parse_scenario
+
+    model = read_plant_model(_write(tmp_path, GOOD))
+    scenario = parse_scenario({"controller": [
+        {"kind": "exact", "label": "fine"},
+        {"kind": "papwc", "label": "weak", "f_p_max": 95.0, "f_c_est": 50.0}]}, "s.toml")
+    told = list(scenario.controllers)
+    with pytest.raises(ScenarioError) as info:
+        model.give_to(scenario)
+    assert str(info.value).startswith("controller weak: the identified plant gives it "
+                                      "f_c_est: f_c_est = 99.0 N: must satisfy")
+    assert scenario.controllers == told  # none changed
+    scenario.controllers.pop()
+    scenario.labels.pop()
+    [(label, before, after)] = model.give_to(scenario)
+    assert label == "fine" and before.m_est == 150.0 and after.m_est == 151.0
+    assert scenario.controllers == [after]

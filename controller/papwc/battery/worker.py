@@ -156,25 +156,20 @@ def _identify_first(scenario, fmu_path: str, unzip_dir: str, record: dict) -> st
     controllers the identified plant; what was identified goes into ``record``. Returns ""
     or why the run cannot run (one line)."""
     from papwc.battery.identify_first import identified_table, model_of
-    from papwc.controllers import CONTROLLER_KINDS
+    from papwc.errors import ScenarioError
     from papwc.master.native_plant import plant_library
 
-    T = scenario.maneuver.T
-    found = identified_table(scenario.plant, T, fmu_path, unzip_dir, plant_library(unzip_dir))
+    found = identified_table(scenario.plant, scenario.maneuver.T, fmu_path, unzip_dir,
+                             plant_library(unzip_dir))
     record["identified"] = {k: v for k, v in found.items() if k != "model"}
     if "error" in found:
         return found["error"]
     model = model_of(found)
     record["identified"].update(model.record())
-    for i, (settings, label) in enumerate(zip(scenario.controllers, scenario.labels,
-                                              strict=True)):
-        given = model.settings(settings, T)
-        problems = given.problems(tuple(CONTROLLER_KINDS))
-        if problems:
-            name, message = problems[0]
-            return (f"identify_first: controller {label}: the identified plant gives it "
-                    f"{name}: {message}")
-        scenario.controllers[i] = given
+    try:
+        model.give_to(scenario)
+    except ScenarioError as exc:
+        return f"identify_first: {exc}"
     return ""
 
 

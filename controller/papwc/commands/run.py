@@ -128,24 +128,15 @@ def given_plant_model(scenario, path: str) -> str:
         If ``path`` is not a plant model, or a controller's settings with it are not valid
         (naming the file, the controller and the setting).
     """
-    from papwc.controllers import CONTROLLER_KINDS
     from papwc.errors import ScenarioError
     from papwc.identify.plant_model import REPLACED, read_plant_model
 
     model = read_plant_model(path)
-    T = scenario.maneuver.T
-    given = []
-    for i, (settings, label) in enumerate(zip(scenario.controllers, scenario.labels,
-                                              strict=True)):
-        new = model.settings(settings, T)
-        problems = new.problems(tuple(CONTROLLER_KINDS))
-        if problems:
-            name, message = problems[0]
-            raise ScenarioError(f"--plant-model {path}: controller {label} of "
-                                f"{scenario.source}: the identified plant gives it {name}: "
-                                f"{message}")
-        scenario.controllers[i] = new
-        given.append(f"{label} (" + ", ".join(
-            f"{name} = {new.get(name):.6g}" for name in REPLACED
-            if name in new.field_names() and new.get(name) != settings.get(name)) + ")")
-    return f"the plant identified in {path} given to " + "; ".join(given)
+    try:
+        given = model.give_to(scenario)
+    except ScenarioError as exc:
+        raise ScenarioError(f"--plant-model {path}: {exc} (of {scenario.source})") from None
+    return f"the plant identified in {path} given to " + "; ".join(
+        f"{label} (" + ", ".join(f"{name} = {new.get(name):.6g}" for name in REPLACED
+                                 if name in new.field_names() and new.get(name) != told.get(name))
+        + ")" for label, told, new in given)

@@ -120,6 +120,36 @@ class PlantModel:
         return dataclasses.replace(settings, **{name: value for name, value in values.items()
                                                 if name in read})
 
+    def give_to(self, scenario: Any) -> list[tuple[str, Any, Any]]:
+        """Give every controller of ``scenario`` (a :class:`papwc.scenario.Scenario`) this
+        plant (:meth:`settings`, at its maneuver's sample period), in place.
+
+        Returns
+        -------
+        list of (str, ControllerSettings, ControllerSettings)
+            Per controller: its label, the settings it was told, those it was given.
+
+        Raises
+        ------
+        ScenarioError
+            ``"controller LABEL: the identified plant gives it NAME: ..."`` if a controller's
+            settings with this plant are not valid (none is changed then).
+        """
+        from papwc.controllers import CONTROLLER_KINDS
+
+        T = scenario.maneuver.T
+        out = []
+        for settings, label in zip(scenario.controllers, scenario.labels, strict=True):
+            given = self.settings(settings, T)
+            problems = given.problems(tuple(CONTROLLER_KINDS))
+            if problems:
+                name, message = problems[0]
+                raise ScenarioError(f"controller {label}: the identified plant gives it "
+                                    f"{name}: {message}")
+            out.append((label, settings, given))
+        scenario.controllers[:] = [given for _, _, given in out]
+        return out
+
     def record(self) -> dict[str, Any]:
         """The identified values as one flat mapping (the battery's identified.csv): the
         fields of :data:`RECORDED` (a deviation not chosen at the model layer's default,
