@@ -7,6 +7,8 @@ import math
 
 import pytest
 from harness import hard_runaways
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from papwc.controllers import CONTROLLER_KINDS, Outcome, Reason, make_controller
 from papwc.controllers.drive_check import DriveCheck
@@ -467,3 +469,33 @@ def test_a_loop_that_feeds_the_drive_stops_it_for_good() -> None:
     ctl.reset()
     assert ctl.update(0.0, slave.plant.x_meas(), 1e-3) == 0.0
     assert ctl.outcome == Outcome.STOPPED and ctl.outcome_reason == Reason.MODEL_REJECTED
+
+
+#: Readings inside sane bounds: the table within 20 mm of its start, the spring's deflection
+#: within 1 mm (800 N on the 20 Hz drive), both on or off the 0.1 um grid.
+_READINGS = st.lists(st.tuples(st.floats(-0.02, 0.02, allow_nan=False),
+                               st.floats(-1e-3, 1e-3, allow_nan=False)),
+                     min_size=1, max_size=60)
+
+
+@settings(max_examples=60, deadline=None)
+@given(start=st.integers(0, 150), readings=_READINGS, delayed=st.booleans())
+def test_no_measurement_sequence_makes_it_output_nan_or_beyond_f_p_max(start, readings,
+                                                                        delayed) -> None:
+    """The controller runs on the 20 Hz drive for ``start`` samples (the check, the loop,
+    pulses), then takes any readings drawn inside sane bounds: every force is finite and
+    within f_p_max."""
+    slave = _slave(DRIVE_20HZ)
+    slave.initialize()
+    ctl = make_controller(dual(), T)
+    sent = 0.0
+    for k in range(start):
+        ctl.x_d_meas = slave.plant.x_d_meas()
+        u = ctl.update(k * T, slave.plant.x_meas(), 1e-3)
+        assert math.isfinite(u) and abs(u) <= 300.0
+        step(slave, sent if delayed else u, k)
+        sent = u
+    for j, (x, delta) in enumerate(readings, start):
+        ctl.x_d_meas = x + delta
+        u = ctl.update(j * T, x, 1e-3)
+        assert math.isfinite(u) and abs(u) <= 300.0, (j, x, delta, u)
