@@ -500,17 +500,18 @@ class DualLoopController(ExactController):
                 toward = f_p * e > 0.0
                 if n > 1 and toward and self.predict(n, f_p) * self.move_ratio(n) <= bound:
                     return n, f_p
-                if not toward or n == 1:
-                    # the law goes away first, finds no pulse that helps, or plans one sample
-                    planned_1 = self._one_sample(e, bound, short, abs(f_p) if toward else 0.0)
-                    if planned_1 is None:
-                        break
-                    f_p, pred = planned_1
-                    self._planned = (1, f_p, pred)
-                    return 1, math.copysign(f_p, e)
-                if not self.move_ratio(n) > ratio:
+                if toward and n > 1 and self.move_ratio(n) > ratio:
+                    ratio = self.move_ratio(n)  # again, with the ratio of its width
+                    continue
+                # the law goes away first, finds no pulse that helps, plans one sample, or
+                # a wider pulse beyond the bound: one sample
+                planned_1 = self._one_sample(e, bound, short,
+                                             abs(f_p) if toward and n == 1 else 0.0)
+                if planned_1 is None:
                     break
-                ratio = self.move_ratio(n)
+                f_p, pred = planned_1
+                self._planned = (1, f_p, pred)
+                return 1, math.copysign(f_p, e)
         finally:
             trust.cap = 1.0
         self.seq.refusal = Reason.NO_MOVE_HELPS
@@ -537,7 +538,7 @@ class DualLoopController(ExactController):
         """
         ratio = self.move_ratio(1)
         push_max = self.settings.f_p_max / self.one_sample_gain
-        goal = min(abs(e), bound / ratio)
+        goal = min(abs(e), bound / ratio * (1.0 - 1e-9))  # (the bound after rounding)
         if self.moves_1 and abs(e) - short >= min(self.moves_1):
             goal = min(goal, abs(e) - short)
         curve = self.curve

@@ -7,7 +7,8 @@ The archive (mode 0644) holds ``SystemStructure.ssd`` and the two FMUs in
   ``controller`` (``resources/PulseController.fmu``);
 - connections ``plant.x_meas -> controller.x_meas`` (the encoder output: what a
   real controller sees; it equals ``x`` with the ideal encoder,
-  ``x_resolution = 0``) and ``controller.u -> plant.u``;
+  ``x_resolution = 0``) and ``controller.u -> plant.u``; for a controller kind that reads
+  the motor encoder (``dual_loop``) also ``plant.x_d_meas -> controller.x_d_meas``;
 - inline parameter bindings (``ssd:ParameterValues``), in one parameter set
   named :data:`PARAMETER_SET` in both components (ecos applies one named set at
   a time; libcosim applies every binding), of types every SSP reader can set
@@ -62,10 +63,12 @@ from papwc.scenario import Scenario, load_scenario
 __all__ = [
     "CONNECTIONS",
     "CONTROLLER",
+    "MOTOR_CONNECTION",
     "PARAMETER_SET",
     "PLANT",
     "build_closed_loop_ssp",
     "closed_loop_parameters",
+    "connections_for",
     "default_controller_index",
     "libcosim_step_size",
 ]
@@ -86,6 +89,8 @@ CONNECTIONS: tuple[tuple[str, str, str, str], ...] = (
     (PLANT, "x_meas", CONTROLLER, "x_meas"),
     (CONTROLLER, "u", PLANT, "u"),
 )
+#: The motor encoder, connected for a controller kind that reads it (``dual_loop``).
+MOTOR_CONNECTION = (PLANT, "x_d_meas", CONTROLLER, "x_d_meas")
 
 #: Connectors declared per component: name -> (kind, type, unit), from the model layer.
 #: The controller's input ``x_ref`` is not declared: it is not connected (the reference
@@ -100,6 +105,10 @@ _CONNECTORS: dict[str, dict[str, tuple[str, str, str | None]]] = {
     )
 }
 
+#: The controller's motor-encoder connector (declared for a kind that reads it).
+_MOTOR_CONNECTOR = next((v.causality, v.type, v.unit) for v in CONTROLLER_INPUTS
+                        if v.name == MOTOR_CONNECTION[3])
+
 _NAMESPACES = {
     "xmlns:ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
     "xmlns:ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
@@ -107,6 +116,16 @@ _NAMESPACES = {
     "xmlns:osp": "http://opensimulationplatform.com/SSP/OSPAnnotations",
     "xmlns:oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
 }
+
+
+def connections_for(kind: str) -> tuple[tuple[str, str, str, str], ...]:
+    """The connections of the closed loop for a controller of ``kind``: :data:`CONNECTIONS`,
+    and :data:`MOTOR_CONNECTION` if the kind reads the motor encoder."""
+    from papwc.controllers import CONTROLLER_KINDS
+
+    if getattr(CONTROLLER_KINDS.get(kind), "reads_x_d_meas", False):
+        return CONNECTIONS + (MOTOR_CONNECTION,)
+    return CONNECTIONS
 
 
 def default_controller_index(scenario: Scenario) -> int:
@@ -245,7 +264,10 @@ def _ssd(
             source=sources[component],
         )
         connectors = ET.SubElement(element, "ssd:Connectors")
-        for name, (kind, typ, unit) in _CONNECTORS[component].items():
+        declared = dict(_CONNECTORS[component])
+        if component == CONTROLLER and MOTOR_CONNECTION in connections_for(settings.kind):
+            declared[MOTOR_CONNECTION[3]] = _MOTOR_CONNECTOR
+        for name, (kind, typ, unit) in declared.items():
             connector = ET.SubElement(connectors, "ssd:Connector", name=name, kind=kind)
             typed = ET.SubElement(connector, f"ssc:{typ}")
             if unit is not None:
@@ -269,7 +291,8 @@ def _ssd(
             else:
                 ET.SubElement(parameter, "ssv:Real", value=_number(value))
     connections = ET.SubElement(system, "ssd:Connections")
-    for start_element, start_connector, end_element, end_connector in CONNECTIONS:
+    for start_element, start_connector, end_element, end_connector in connections_for(
+            settings.kind):
         ET.SubElement(
             connections,
             "ssd:Connection",
