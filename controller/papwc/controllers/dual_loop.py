@@ -5,21 +5,37 @@ damping c_t), a pulse leaves the drive ringing; a pulse started from a ringing d
 moves the table by an amount its height and width do not decide. This controller
 reads both encoders -- the table's ``x_meas`` and the motor's ``x_d_meas`` -- and
 
-* between pulses, once the table is stuck, runs a *motor loop*: state feedback on
-  the spring deflection delta = x_d - x and its rate (the table's friction holds
-  it), that brings both to zero (poles at :data:`LOOP_POLE`; the rate from a
-  two-reading estimator on the same model);
-* plans and learns its pulses as the exact-model controller does
-  (:class:`papwc.controllers.exact.ExactController`: Eq. (3) learned from its
-  own pulses, inside a trust region), on the rest detection and trust region of a
-  rigid table: with the drive relaxed before every pulse, a pulse's move is a
-  function of its height and width;
+* checks its drive model against the motor encoder before it acts on it
+  (:class:`~.drive_check.DriveCheck`): at its first sample a probe of :data:`PROBE_SHARE`
+  times ``f_c_est`` on the motor (the spring's first peak, at most twice that, stays below
+  the friction that holds the table); the readings give the delay of the force (0, or 1
+  for a master stepping plant and controller side by side), the mode of the free ringing
+  and the motor mass its amplitude implies. A mode told (``f_mode``) or a mass told
+  (``m_d_est``) that the ringing contradicts, or no ringing within :data:`PROBE_WAIT_S`, is
+  refused: every maneuver stops ``model_rejected``, the table not moved; a motor encoder
+  that does not follow the probe, ``invalid_measurement``. Otherwise the motor loop is
+  built on the mode seen;
+* between pulses, once the table is stuck, runs a *motor loop*
+  (:class:`~.motor_loop.MotorLoop`): state feedback on the spring deflection delta = x_d - x
+  and its rate that brings both to zero (poles at :data:`LOOP_POLE`; the rate from a
+  two-reading estimator on the same model; with a delay, on the state the force already
+  sent leaves). A loop that feeds the drive (its ringing grown to :data:`LOOP_GROWTH`
+  times what it took over) or moves the table (beyond what the drive's energy explains,
+  and the rest band or :data:`LOOP_SLIP`) stops the controller for good
+  (``model_rejected``, 0 N); so does a drive that does not relax within
+  :data:`RELAX_MAX_S`;
+* plans its pulses as the exact-model controller does
+  (:class:`papwc.controllers.exact.ExactController`), on the rest detection of a rigid
+  table, and fires a plan only within the runaway bound ``1.5*abs(e) + x_resolution``
+  (:meth:`DualLoopController.plan_pulse`): no pulse away from the target, each
+  prediction times the largest recent move/prediction of its width class within the bound,
+  wide pulses stopped short for a one-sample landing planned on the recent one-sample moves
+  (:class:`~.move_curve.MoveCurve`), a staircase where nothing is known;
 * applies a pulse of n samples at height f_p as n samples of f_p on the motor (one
   sample: f_p/(2*sin(omega*T/2)), the motor force whose spring's first peak pushes
-  the table with f_p), then no force until that peak (``ceil(1/(4*f_mode*T) - 1/2)``
-  samples) and on while the table's reading still moves (by more than the rest
-  band), then the motor loop: the table's move is that of the pulse on the free
-  drive (no more), and the loop relaxes the drive with the table stuck;
+  the table with f_p, at most ``f_p_max``), then no force until that peak
+  (``ceil(1/(4*f_mode*T) - 1/2)`` samples and the delay) and on while the table's reading
+  still moves (by more than the rest band), then the motor loop;
 * gives the sequencer a sample only while a pulse is being applied or the drive
   is *relaxed*: the deflection's amplitude k_t*sqrt(delta**2 + (delta'/omega)**2)
   at most ``f_relax`` on :data:`RELAX_SAMPLES` readings in a row. So a pulse
@@ -28,29 +44,21 @@ reads both encoders -- the table's ``x_meas`` and the motor's ``x_d_meas`` -- an
 
 The drive model is the mode frequency ``f_mode`` (Hz, of the motor on the spring
 against the stuck table: omega = 2*pi*f_mode = sqrt(k_t/m_d)), the motor mass
-``m_d_est`` (kg; k_t = m_d_est*omega**2) and ``c_t_est`` (N.s/m). A loop sampled
-at T can damp such a mode only well below the Nyquist frequency: ``f_mode`` must
-lie in [0, :data:`F_MODE_MAX_T`/T] (the settings refuse others); with ``f_mode``
-= 0 (no drive model) there is no motor loop and the controller is the exact-model
-controller on the table's encoder, with its rest and trust of a rigid table. With
-``f_mode`` = 0 and ``identify_mode``, the mode is identified instead: at the first sample
-a probe of one sample of :data:`PROBE_SHARE` times ``f_c_est`` on the motor (the spring's
-first peak, at most twice that, stays below the friction that holds the table), then no
-force while :class:`~.mode_id.ModeIdentifier` fits the free ringing the motor encoder
-shows (at most :data:`PROBE_WAIT_S`); with a mode within 0.25/T the motor loop is built
-on it (with ``m_d_est`` and ``c_t_est``, as for a mode told), the ringing the table-only
-rest detection saw is forgotten, and the maneuver's first pulse waits for the relaxed
-drive. Without one (the motor encoder not connected, a rigid drive), it goes on on the
-table's encoder alone, and takes any later free ringing of a stuck table into the fit.
-When the drive does not relax within :data:`RELAX_MAX_S` seconds (a drive unlike its
-model), the controller stops with the reason ``model_rejected`` and outputs 0.
+``m_d_est`` (kg) and ``c_t_est`` (N.s/m). A loop sampled at T can damp such a mode only
+well below the Nyquist frequency: ``f_mode`` must lie in [0, :data:`F_MODE_MAX_T`/T] (the
+settings refuse others). With ``f_mode`` = 0 and without ``identify_mode`` there is no
+motor loop: the controller is the exact-model controller on the table's encoder. With
+``f_mode`` = 0 and ``identify_mode`` the probe identifies the mode (within 0.25/T) instead
+of checking one; without one (the motor encoder not connected, a rigid drive) it goes on
+on the table's encoder alone, and takes any later free ringing of a stuck table into the
+fit.
 
 The host sets :attr:`DualLoopController.x_d_meas` (m) before each
 :meth:`~DualLoopController.update` (the controller slave and PulseController.fmu
 do, from their input ``x_d_meas``); a reading that is not finite stops it with
 ``invalid_measurement``, and so does a motor reading that does not follow a pulse's
-first sample (less than :data:`MOTOR_FOLLOWS` of the motor's move on the model: the
-encoder not connected), before the loop acts on it.
+first force (less than :data:`~.drive_check.MOTOR_FOLLOWS` of the motor's move on the
+model: the encoder disconnected), before the loop acts on it.
 
 Standard library only (bundled into the controller FMU).
 """
