@@ -10,7 +10,8 @@ The archive (mode 0644) holds ``SystemStructure.ssd`` and the two FMUs in
   paper's controllers;
 - connections ``plant.x_meas -> controller.x_meas`` (the encoder output: what a
   real controller sees; it equals ``x`` with the ideal encoder,
-  ``x_resolution = 0``) and ``controller.u -> plant.u``;
+  ``x_resolution = 0``) and ``controller.u -> plant.u``; for a controller kind that reads
+  the motor encoder (``dual_loop``) also ``plant.x_d_meas -> controller.x_d_meas``;
 - inline parameter bindings (``ssd:ParameterValues``), in one parameter set
   named :data:`PARAMETER_SET` in both components (ecos applies one named set at
   a time; libcosim applies every binding), of types every SSP reader can set
@@ -65,6 +66,7 @@ from papwc.scenario import Scenario, load_scenario
 __all__ = [
     "CONNECTIONS",
     "CONTROLLER",
+    "MOTOR_CONNECTION",
     "PARAMETER_SET",
     "PLANT",
     "build_closed_loop_ssp",
