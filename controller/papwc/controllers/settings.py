@@ -114,6 +114,8 @@ class ControllerSettings:
     c_t_est: float = 0.0
     f_relax: float = 2.0
     identify_mode: bool = False
+    # hybrid
+    ramp_rate: float = 150.0
 
     @classmethod
     def field_names(cls) -> list[str]:
