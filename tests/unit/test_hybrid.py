@@ -86,6 +86,24 @@ def test_a_ramp_climbs_from_the_force_held_and_is_cut_on_the_first_reliable_move
     assert ctl.pulses == 1
 
 
+def test_the_force_held_is_the_pids_at_most_the_coulomb_estimate():
+    """The PID pushes with more than f_c_est against a table that does not move (its
+    integral wound up): the hybrid's window holds f_c_est, below any sliding friction, and
+    its first ramp starts there."""
+    ctl = make_controller(_settings(**ARRIVES, k_i=1e9), T)
+    x_ref = 1e-3
+    forces: list[float] = []
+    while not ctl.holding and len(forces) < 100:
+        forces.append(ctl.update(len(forces) * T, x_ref - 0.9e-6, x_ref))
+    assert max(forces[1:]) > ctl.settings.f_c_est and ctl.holding
+    assert ctl.u_hold == ctl.settings.f_c_est and forces[-1] == ctl.u_hold
+    while ctl.pulses == 0:
+        u = ctl.update(len(forces) * T, x_ref - 0.9e-6, x_ref)
+        forces.append(u)
+        assert ctl.pulses or u == ctl.u_hold
+    assert u == pytest.approx(ctl.settings.f_c_est + ctl.settings.ramp_rate * T)
+
+
 def test_noise_the_rest_detector_measured_sets_the_threshold_not_a_single_count():
     """With 0.2 um of noise measured (2 counts), a single reading 0.5 um toward the target
     (2.5 sigma, five counts, beyond REACH of the 0.6 um error) does not cut the ramp; the

@@ -20,6 +20,7 @@ from papwc.controllers.pid import (
     pid_gains,
     trapezoid,
 )
+from papwc.controllers.rest import NOISE_WINDOW
 from papwc.controllers.settings import ControllerSettings
 from papwc.model.controller_settings import OUTCOME_REASONS
 from papwc.results.pulses import pulses_of
@@ -225,37 +226,29 @@ def _still_at(ctl, x: float, x_ref: float, n: int, k0: int = 0) -> list[float]:
     return [ctl.update((k0 + k) * ctl.T, x, x_ref) for k in range(n)]
 
 
-def test_inside_the_window_the_integrator_is_frozen_and_the_force_held():
+def test_inside_the_window_the_integrator_is_frozen_and_the_force_bled_to_zero():
     """A table stuck 0.5 um short of the target (a noiseless encoder) inside a 1 um window:
-    once its readings are still, the force is held, at most f_c_est, and the integral
-    frozen; a reading 3 um away (outside the window by more than noise) releases it: the
-    PID acts again with the integral it had."""
+    while the PID pushes, its integral grows; once the readings are still, the force is
+    bled to zero at once and held there (PidSequencer.holding_force) and the integral
+    frozen; a reading 3 um away (outside the window by more than noise) hands the table
+    back to the PID, which acts with the integral it had."""
     ctl = make_controller(_settings(**ARRIVES), 1e-3)
     x_ref = 1e-3
     pushing = _still_at(ctl, x_ref - 0.5e-6, x_ref, 10)
     assert ctl.mode == Mode.COARSE and not ctl.holding
-    assert len(set(pushing[1:])) > 1  # the integral grows while the PID pushes
+    assert len(set(pushing[1:])) > 1 and pushing[-1] > 0.0  # the integral grows
     held = _still_at(ctl, x_ref - 0.5e-6, x_ref, 200, 10)
     assert ctl.holding and ctl.mode in (Mode.WAIT, Mode.SETTLED)
-    k = held.index(ctl.u_hold)
-    assert held[k:] == [ctl.u_hold] * (200 - k) and 0.0 < ctl.u_hold <= ctl.settings.f_c_est
+    k = held.index(0.0)
+    assert k <= NOISE_WINDOW and held[k:] == [0.0] * (200 - k) and ctl.u_hold == 0.0
     frozen = ctl.integral
+    assert frozen != 0.0
     _still_at(ctl, x_ref - 0.5e-6, x_ref, 100, 210)
     assert ctl.integral == frozen
     u = ctl.update(0.31, x_ref - 3e-6, x_ref)
-    assert not ctl.holding and ctl.mode == Mode.COARSE and u != ctl.u_hold
+    assert not ctl.holding and ctl.mode == Mode.COARSE and u > 0.0
     ctl.update(0.312, x_ref - 3e-6, x_ref)
     assert ctl.integral != frozen  # the integrator acts again
-
-
-def test_a_force_above_the_coulomb_estimate_is_not_held():
-    """The PID pushes with more than f_c_est against a table that does not move (its
-    integral wound up): the force held is f_c_est, below any sliding friction."""
-    ctl = make_controller(_settings(**ARRIVES, k_i=1e9), 1e-3)
-    x_ref = 1e-3
-    forces = _still_at(ctl, x_ref - 0.9e-6, x_ref, 300)
-    assert max(forces) > ctl.settings.f_c_est and ctl.holding
-    assert forces[-1] == ctl.u_hold == ctl.settings.f_c_est
 
 
 def test_settled_only_within_the_tolerance_at_rest_counts_rounding_in():
@@ -300,7 +293,7 @@ def test_noisy_readings_are_averaged_before_the_outcome_is_settled():
     assert settled_at is not None and on.holding
 
 
-def test_a_hunting_pid_with_the_window_stops_holding_its_force():
+def test_a_hunting_pid_with_the_window_stops():
     fast = {**ARRIVES, "tolerance": 1e-7, "hunt_max": 2, "in_position_band": 1e-6}
     ctl = make_controller(_settings(**fast), 1e-3)
     x_ref = 1e-3
@@ -309,8 +302,7 @@ def test_a_hunting_pid_with_the_window_stops_holding_its_force():
         _still_at(ctl, x_ref + side, x_ref, 30, k)
         k += 30
     assert ctl.outcome == Outcome.STOPPED and ctl.outcome_reason == HUNTING
-    assert ctl.holding and abs(ctl.u_hold) <= ctl.settings.f_c_est
-    assert ctl.update(k * 1e-3, x_ref, x_ref) == ctl.u_hold  # held, not released
+    assert ctl.update(k * 1e-3, x_ref, x_ref) == 0.0
 
 
 @settings(max_examples=100, deadline=None)

@@ -102,6 +102,19 @@ class HybridSequencer(PidSequencer):
         while a ramp changes the force."""
         return self.law.phase != RAMP and self.law.arrived()
 
+    def holding_force(self, u: float) -> float:
+        """The force held for the PID's last force u (N): u, at most ``f_c_est``.
+
+        The ramps start from it, nearer the breakaway than none (the PID's window bleeds it
+        to zero: held or bled, the hybrid's figures: 108 against 91 of 144 runs within one
+        count, realism_mc(_lugre)_hybrid.toml with seed offsets 0, 2000, 3000). A table slips
+        under a force held near its breakaway (a stiction drawn anew, an actuator's lag
+        catching up, creep on pre-sliding bristles), and a force above the sliding friction
+        keeps it sliding; the Coulomb friction's estimate ``f_c_est`` lies below any sliding
+        friction, so a slip under it dies out.
+        """
+        return math.copysign(min(abs(u), self.f_c_est), u)
+
     def coasts_into_window(self, x_ref: float) -> bool:
         """The PID's force is not cut as the table coasts into the hybrid's window: the ramps
         start from the force the PID holds, nearer the breakaway than none."""

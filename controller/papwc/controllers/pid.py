@@ -334,18 +334,23 @@ class PidSequencer(PulseSequencer):
         return 0.0
 
     def holding_force(self, u: float) -> float:
-        """The force held for the force u (N) the PID gave last: u, at most ``f_c_est``.
+        """The force the window holds for the force u (N) the PID gave last: none.
 
-        A table slips under a force held near its breakaway (a stiction drawn anew, an
-        actuator's lag still catching up, creep on pre-sliding bristles), and a force
-        above the sliding friction keeps it sliding; the Coulomb friction's estimate
-        ``f_c_est`` lies below any sliding friction, so a slip under it dies out.
+        Bled to zero at once (the integrator frozen): on a table whose friction holds it,
+        any force below its breakaway holds it alike, and a force held near the breakaway
+        slips it (a stiction drawn anew, an actuator's lag catching up) or, on pre-sliding
+        bristles, lets it creep out of the window to be pushed back (hunting). Measured on
+        realism_mc_lugre_1khz.toml (tolerance 0.1 um, offsets 0, 1000, 2000; 54 rigid runs):
+        within one count 36 released against 29 held at most ``f_c_est``, the position
+        moving more than a count in the last 0.5 s in 13 against 29 runs; on the stick-slip
+        tables of realism_mc_1khz.toml the same runs either way (the force is cut as the
+        table coasts into the window). The hybrid holds its force (its ramps start there).
         """
-        return math.copysign(min(abs(u), self.f_c_est), u)
+        return 0.0
 
     def enter_hold(self, x_ref: float, u: float, capped: bool = True) -> float:
-        """Hold the force u (N; ``capped``: at most ``f_c_est``, :meth:`holding_force`) from
-        here; its readings are averaged anew (a rest before it may have moved within the
+        """Hold the force :meth:`holding_force` gives for u (N; not ``capped``: u itself)
+        from here; its readings are averaged anew (a rest before it may have moved within the
         band, and the force held may differ from the PID's last)."""
         law = self.law
         law.holding, law.u_hold = True, self.holding_force(u) if capped else u
