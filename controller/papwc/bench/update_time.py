@@ -18,8 +18,8 @@ objects are frozen out of the garbage collector's generations during each run
 process would hold, not the bench's millions of recorded times; and so is the trace the
 master records as the run goes on (a list per slave and sample: every
 :data:`FREEZE_EVERY` updates, outside the time measured; at T = 1 ms a collection that
-scanned a 6000-sample trace took 0.3 to 0.9 ms inside an update of 0.01 ms). And a run with an update
-above T/4 is made again (:data:`REPEATS` times at most), each update keeping its least
+scanned a 6000-sample trace took 0.3 to 0.9 ms inside an update of 0.01 ms). And a run with
+an update above T/4 is made again (:data:`REPEATS` times at most), each update keeping its least
 time: on a shared or virtual machine a thread's CPU time also counts what the machine took
 from it (a 1 kHz PID update measured 0.14 ms at most in one pass, 20 ms once in the next).
 

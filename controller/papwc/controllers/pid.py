@@ -37,6 +37,16 @@ rests on alternating sides of the target -- stops at the rest that follows
 ``hunt_max`` reversals if that rest is nearer the target than the maneuver
 started (outcome ``stopped``, reason ``hunting``), so that the time limit does
 not catch it on an excursion beyond where it started.
+
+The in-position window (``in_position``, on by default where T <= 1 ms; issue 43's
+practitioners' anchor): the force is not released on the way in (but cut where the table
+would coast to rest inside the window); once the reference has arrived and the table rests
+inside ``in_position_band`` (at rest by the rest detector, still by the slope of its last 16
+readings), the integrator is frozen and the force bled to zero, the readings are averaged
+and the outcome is ``settled`` only once the average is within the tolerance by three
+standard errors and the rounding of a count (``x_resolution``); a reading beyond the window
+by more than noise, or the average beyond it, hands the table back to the PID
+(:meth:`PidSequencer.window_update`).
 """
 
 from __future__ import annotations
@@ -77,13 +87,13 @@ PID_SETTINGS: tuple[Variable, ...] = (
              "in_position_band; it then holds its force)", "", 4, type="Integer",
              min=1, max=1_000_000),
     Variable("in_position", "In-position window of the PID, as a drive's: once the reference "
-             "has arrived and the table rests within in_position_band of the target, the "
-             "integrator is frozen and the force held (not released: a pre-sliding table or a "
-             "drive's spring would give back what the force holds); it acts again, from the "
-             "force held, once the table is seen outside the band. Default: on where T <= "
-             "1 ms (a drive's loop), off at longer periods (the force is then released near "
-             "the target and the rest judged without it)", "", None, type="Boolean",
-             optional=True, fmi_default=False),
+             "has arrived and the table rests (still) within in_position_band of the target, "
+             "the integrator is frozen and the force bled to zero (hybrid: held, at most "
+             "f_c_est), the readings averaged and the outcome settled only within the "
+             "tolerance; the PID acts again, with the integral it had, once the table is seen "
+             "outside the band. Default: on where T <= 1 ms (a drive's loop), off at longer "
+             "periods (the force is then released near the target and the rest judged "
+             "without it)", "", None, type="Boolean", optional=True, fmi_default=False),
     Variable("in_position_band", "Half-width of the in-position window around the target; "
              "default the tolerance, at least one count (x_resolution; hybrid: at least "
              f"{HYBRID_BAND * 1e6:g} um)", "m", None, min=0.0, max=1.0, optional=True,
