@@ -206,7 +206,10 @@ def test_exact_settings_are_normal_settings_of_the_table():
     assert CONTROLLER_KINDS["exact"] is ExactController
     defaults = ControllerSettings()
     for name, default in EXACT_SETTINGS.items():
-        assert SETTINGS_BY_NAME[name].kinds == ("exact", "dual_loop")
+        # the encoder's count is read by the PID's window and the hybrid too (issue 46)
+        assert SETTINGS_BY_NAME[name].kinds == (("exact", "pid", "dual_loop", "hybrid")
+                                                if name == "x_resolution"
+                                                else ("exact", "dual_loop"))
         assert getattr(defaults, name) == default
         assert name in settings_for_kind("exact")
         assert name not in settings_for_kind("papwc") and name not in settings_for_kind("pwc")

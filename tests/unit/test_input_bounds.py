@@ -55,7 +55,7 @@ def refused(data: dict, *parts: str) -> str:
 @pytest.mark.parametrize("kind", [["papwc"], {"a": 1}, 3, None])
 def test_kind_given_as_array_or_table_is_a_named_error(kind) -> None:
     refused(scenario(controller=[{"kind": kind}]), "[[controller]] #1 field 'kind'",
-            "must be one of 'dual_loop', 'exact', 'papwc', 'pid', 'pwc'")
+            "must be one of 'dual_loop', 'exact', 'hybrid', 'papwc', 'pid', 'pwc'")
 
 
 @pytest.mark.parametrize("field, value, allowed", [

@@ -88,7 +88,9 @@ EXACT_SETTINGS: tuple[Variable, ...] = (
              max=1e9, nominal=100.0),
     Variable("history", "Number of pulses kept for the fit", "", 16, type="Integer", min=1,
              max=1000),
-    Variable("x_resolution", "Resolution of the position measurement; weights the fit", "m",
+    Variable("x_resolution", "Resolution of the position measurement (the encoder's count; "
+             "0: ideal): weights the exact-model controller's fit; the PID's and the hybrid's "
+             "decisions at rest allow for the rounding of the readings", "m",
              0.0, min=0.0, max=1.0, nominal=1e-6),
     Variable("f_s_tol", "Relative width of the f_s bracket below which no more probing is "
              "done", "1", 0.02, min=0.0, max=1.0, min_open=True),
