@@ -105,8 +105,9 @@ PID_SETTINGS: tuple[Variable, ...] = (
 #: (:meth:`PidSequencer.still`, over ``NOISE_WINDOW`` readings).
 SLOPE_NORM = sum((i - 0.5 * (NOISE_WINDOW - 1)) ** 2 for i in range(NOISE_WINDOW))
 #: The in-position window is on by default at sample periods up to this, s (a drive's 1 kHz
-#: loop); a relative margin of 1e-9 takes T = 1e-3 written in any way.
+#: loop), and the relative margin that takes T = 1e-3 written in any way.
 IN_POSITION_T = 1e-3
+IN_POSITION_T_MARGIN = 1e-9
 
 
 #: Bandwidth of the default gains as a fraction of the sampling rate 1/T (rad/s per 1/s).
@@ -146,7 +147,7 @@ def in_position_window(settings: ControllerSettings, T: float) -> tuple[bool, fl
     ``in_position_band`` if given, else the tolerance, at least one count
     (``x_resolution``).
     """
-    on = (T <= IN_POSITION_T * (1.0 + 1e-9) if settings.in_position is None
+    on = (T <= IN_POSITION_T * (1.0 + IN_POSITION_T_MARGIN) if settings.in_position is None
           else bool(settings.in_position))
     band = (max(settings.tolerance, settings.x_resolution) if settings.in_position_band is None
             else settings.in_position_band)

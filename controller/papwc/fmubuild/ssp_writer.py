@@ -372,7 +372,7 @@ def build_closed_loop_ssp(
     plant_fmu, controller_fmu : Path
         ``FrictionPlant.fmu`` and ``PulseController.fmu``, copied into the
         archive's ``resources/``; for a kind the native PulseController.fmu does not
-        implement (exact, dual_loop), ``PulseControllerPython.fmu`` beside it.
+        implement (exact, dual_loop, hybrid), ``PulseControllerPython.fmu`` beside it.
     controller_index : int, optional
         Index (0-based) of the ``[[controller]]`` table; default: the first
         table of kind ``"papwc"`` (in ``scenarios/paper.toml``, PAPWC with
