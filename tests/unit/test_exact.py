@@ -229,8 +229,9 @@ def test_exact_settings_are_normal_settings_of_the_table():
     ("bad", "message"),
     [
         ({"c_est": -1.0}, "c_est = -1.0 N.s/m: must satisfy 0 <= c_est <= 1e+09 N.s/m"),
-        ({"history": 0}, "history = 0: must be a whole number 1 <= history <= 1000"),
-        ({"history": -1}, "history = -1: must be a whole number 1 <= history <= 1000"),
+        ({"history": 0}, "history = 0: must be a whole number 1 <= history <= 52"),
+        ({"history": -1}, "history = -1: must be a whole number 1 <= history <= 52"),
+        ({"history": 53}, "history = 53: must be a whole number 1 <= history <= 52"),
         ({"max_pulses": 2.5},
          "max_pulses = 2.5: must be a whole number 1 <= max_pulses <= 1000000"),
         ({"x_resolution": -1e-6}, "x_resolution = -1e-06 m: must satisfy 0 <= x_resolution <= 1 m"),

@@ -69,14 +69,16 @@ Standard library only (bundled into the controller FMU).
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from ..model.pulse import b_coulomb, bisect_increasing, nearest_increasing, pulse_displacement
 from ..model.variables import Variable
 from .base import Z_DECIDE, PulseControllerBase, Reason
 from .breakaway import BreakawayEvidence
+from .budget import HISTORY_MAX, PLAN_RESERVE, Ops
 from .exact_fit import PulseModelEstimator
 from .sequencer import M_D_EST
 from .settings import ControllerSettings
@@ -86,8 +88,9 @@ from .settings import ControllerSettings
 EXACT_SETTINGS: tuple[Variable, ...] = (
     Variable("c_est", "Initial estimate of the viscous damping", "N.s/m", 0.0, min=0.0,
              max=1e9, nominal=100.0),
-    Variable("history", "Number of pulses kept for the fit", "", 16, type="Integer", min=1,
-             max=1000),
+    Variable("history", f"Number of pulses kept for the fit (at most {HISTORY_MAX}: a step of "
+             "the fit, one Levenberg-Marquardt iteration over them, fits an update's budget "
+             "beside the plan)", "", 16, type="Integer", min=1, max=HISTORY_MAX),
     Variable("x_resolution", "Resolution of the position measurement; weights the fit", "m",
              0.0, min=0.0, max=1.0, nominal=1e-6),
     Variable("f_s_tol", "Relative width of the f_s bracket below which no more probing is "
@@ -166,6 +169,27 @@ _IMPLAUSIBLE = 2.0
 _N_SEARCH_MAX = 1 << 20
 
 
+def _counted(update: Callable[..., float]) -> Callable[..., float]:
+    """``update`` of a kind built on the exact-model law, counted against the update's
+    budget (:mod:`.budget`): what the sample leaves of it goes to the refit of Eq. (3) under
+    way (:meth:`ExactController.spare`)."""
+
+    @functools.wraps(update)
+    def counted(self: ExactController, t: float, x_meas: float, x_ref: float) -> float:
+        ops = self.ops
+        ops.reset()
+        if self.estimator.job:
+            self.seq.idle_x = math.nan  # a sample with work to do is not only counted
+        try:
+            u = update(self, t, x_meas, x_ref)
+            self.spare()
+        finally:
+            ops.end()
+        return u
+
+    return counted
+
+
 class ExactController(PulseControllerBase):
     """Pulse control on the exact model, Eq. (3), with m, f_c, c and f_s learned online.
 
@@ -198,6 +222,11 @@ class ExactController(PulseControllerBase):
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
         self.f_s_tol = float(settings.f_s_tol)
+        #: The operations of the present update (:mod:`.budget`).
+        self.ops = Ops()
+        #: Ratios measured/model of the history's pulses under one model (:meth:`correction`;
+        #: derived, not state: the key ``None`` holds the model they are for).
+        self._ratios: dict = {}
         self.estimator = PulseModelEstimator(
             settings.m_est,
             settings.f_c_est,
@@ -206,6 +235,7 @@ class ExactController(PulseControllerBase):
             settings.f_p_max,
             history=int(settings.history),
             x_resolution=float(settings.x_resolution),
+            ops=self.ops,
         )
         #: Relative errors of the last predictions (a priori, beyond the noise).
         self.errors = [1.0, 1.0]
@@ -225,7 +255,7 @@ class ExactController(PulseControllerBase):
         self._planned: tuple[int, float, float] = (0, 0.0, 0.0)
         self._planned_last = False
         #: The evidence of the breakaway and of one-sample moves near it.
-        self.breakaway = BreakawayEvidence(settings.f_c_est, settings.m_est, T)
+        self.breakaway = BreakawayEvidence(settings.f_c_est, settings.m_est, T, self.ops)
         #: The lowest breakaway still possible when the present pulse was planned on that
         #: evidence, N (0: the pulse was not).
         self.ev_lo = 0.0
@@ -237,6 +267,18 @@ class ExactController(PulseControllerBase):
         #: A pulse of this maneuver moved the table visibly.
         self.moved = False
         super().__init__(settings, T)
+
+    def __init_subclass__(cls, **kwargs: Any) -> None:
+        # a kind built on this law (the dual loop) that has its own update is counted too
+        super().__init_subclass__(**kwargs)
+        if "update" in cls.__dict__:
+            cls.update = _counted(cls.__dict__["update"])
+
+    @_counted
+    def update(self, t: float, x_meas: float, x_ref: float) -> float:
+        """Force u (N) over the next sample (:meth:`PulseControllerBase.update`), the
+        sample's work counted against its budget (:mod:`.budget`)."""
+        return self.seq.update(x_meas, x_ref)
 
     def reset(self) -> None:
         """Start a new maneuver from rest: the learned model is kept, misses forgotten.
@@ -251,6 +293,15 @@ class ExactController(PulseControllerBase):
         self.ev_lo = 0.0
         self.moved = False
         self.revision += 1  # f_low may differ
+
+    def spare(self) -> None:
+        """The rest of the sample's budget: the refit of Eq. (3) under way goes on (the
+        estimates change once it ends)."""
+        est = self.estimator
+        if est.job:
+            est.advance(0)
+            if not est.job:
+                self.revision += 1
 
     # -- planning ----------------------------------------------------------------------
     @property
@@ -309,9 +360,18 @@ class ExactController(PulseControllerBase):
         m, f_c, c = est.params()
         t = n_near * self.T
 
+        ratios = self._ratios
+        if ratios.get(None) != (m, f_c, c, self.T):
+            # the ratios hold for this model only (the cache is the plan's, not state)
+            ratios.clear()
+            ratios[None] = (m, f_c, c, self.T)
+
         def ratio(point: tuple[float, float]) -> float:
-            model = pulse_displacement(point[0], t, m, f_c, c)
-            return point[1] / model if model > 0.0 else math.inf
+            key = (t, *point)
+            if key not in ratios:
+                model = self.eq3(point[0], t, m, f_c, c)
+                ratios[key] = point[1] / model if model > 0.0 else math.inf
+            return ratios[key]
 
         def interpolated(f: float) -> float:
             below = above = None
@@ -338,10 +398,16 @@ class ExactController(PulseControllerBase):
         lo, hi = _CORRECTION_BOUNDS
         return min(max(r, lo), hi) if r == r else 1.0
 
+    def eq3(self, f: float, t: float, m: float, f_c: float, c: float) -> float:
+        """Eq. (3), :func:`~papwc.model.pulse.pulse_displacement` (m), counted in the update's
+        operations (:mod:`.budget`)."""
+        self.ops.eq3 += 1
+        return pulse_displacement(f, t, m, f_c, c)
+
     def displacement(self, n: int, f: float) -> float:
         """Displacement of a pulse of n samples at height f > 0 (N): the corrected model, m."""
         m, f_c, c = self.estimator.params()
-        return pulse_displacement(f, n * self.T, m, f_c, c) * self.correction(n, f)
+        return self.eq3(f, n * self.T, m, f_c, c) * self.correction(n, f)
 
     def predict(self, n: int, f_p: float) -> float:
         """Displacement (m, along f_p) the corrected model predicts for the pulse.
@@ -615,7 +681,7 @@ class ExactController(PulseControllerBase):
         does not make the move look shorter than it may be).
         """
         m = min(self.estimator.m_hat, self.settings.m_est)
-        return pulse_displacement(f, self.T, m, f_b, 0.0) if f > f_b else 0.0
+        return self.eq3(f, self.T, m, f_b, 0.0) if f > f_b else 0.0
 
     def implied_breakaway(self, f: float, d: float) -> float:
         """Breakaway force (N) at which one sample at f (N) moves d > 0 (m) by
@@ -778,7 +844,8 @@ class ExactController(PulseControllerBase):
                 if pred > 0.0 and moved:
                     self.shortfall = (self.shortfall + [d_along / pred])[-_SHORTFALLS:]
                 if moved and not crept:
-                    est.observe(n, f_p, d)  # a long move: Eq. (3) and its correction learn it
+                    # a long move: Eq. (3) and its correction learn it
+                    est.observe(n, f_p, d, PLAN_RESERVE)
                 return
         elif visible:
             ev.table_moved()
@@ -814,7 +881,7 @@ class ExactController(PulseControllerBase):
             if n == 1 and self._after_single:
                 self.fine_error = min(r, 1e3)
         self._after_single = n == 1
-        est.observe(n, f_p, d)
+        est.observe(n, f_p, d, PLAN_RESERVE)
 
     def precision(self, e: float) -> float:
         """Relative error expected of the move for e (m): the last two prediction errors.
@@ -832,7 +899,7 @@ class ExactController(PulseControllerBase):
         """Move (m) of one sample at f (N) on Eq. (3), the larger with the fitted and with
         the initial estimates: what a table that breaks away at once moves at least."""
         s = self.settings
-        prior = pulse_displacement(f, self.T, s.m_est, s.f_c_est, float(s.c_est))
+        prior = self.eq3(f, self.T, s.m_est, s.f_c_est, float(s.c_est))
         return max(self.estimator.displacement(f, 1), prior)
 
     def estimates(self) -> dict[str, float]:
