@@ -406,27 +406,27 @@ def test_a_maneuver_after_a_learned_one_starts_with_a_pulse_for_the_lowest_break
     ctl = _true_model_controller()
     for f, d in [(300.0, 2e-4), (200.0, 3e-5), (150.0, 2e-5)]:
         ctl.learn(3, f, d)
-    ctl.misses, ctl.errors = 3, [2.0, 2.0]  # a rejected model ...
+    ctl.cautious.misses, ctl.fitted.errors = 3, [2.0, 2.0]  # a rejected model ...
     ctl.estimator.rel_misfit = 0.8
     e = 1e-6
     ctl.seq.pulses = 1
     assert ctl.plan_pulse(e)[1] == 0.0  # ... refuses within a maneuver
     ctl.reset()
-    ctl.misses = 3
+    ctl.cautious.misses = 3
     n, f_p = ctl.plan_pulse(e)  # at the start of a maneuver: a pulse on the evidence
-    f_b = ctl.f_b_low()
+    f_b = ctl.evidence.f_b_low()
     assert n == 1 and f_p > f_b > 0.0
-    assert ctl.lowest_breakaway_move(f_p, f_b) <= ctl.trust() * e * (1 + 1e-9)
-    assert ctl.predict(n, f_p) == ctl.lowest_breakaway_move(f_p, f_b)
+    assert ctl.evidence.lowest_breakaway_move(f_p, f_b) <= ctl.trust() * e * (1 + 1e-9)
+    assert ctl.predict(n, f_p) == ctl.evidence.lowest_breakaway_move(f_p, f_b)
     ctl.seq.pred = ctl.predict(n, f_p)
     ctl.learn(n, f_p, 0.0)  # it did not move: the breakaway lies above it
-    assert ctl.f_lb == f_p and ctl.f_b_low() == f_p
+    assert ctl.evidence.f_lb == f_p and ctl.evidence.f_b_low() == f_p
     ctl.seq.pulses = 1
     n2, f2 = ctl.plan_pulse(e)  # the next one goes on from there
     assert n2 == 1 and f2 > f_p
     ctl.seq.pred = ctl.predict(n2, f2)
     ctl.learn(n2, f2, 0.6 * ctl.seq.pred)  # it moved: the table breaks away anew
-    assert ctl.f_lb == 0.0 and ctl.implied == [f_p]
+    assert ctl.evidence.f_lb == 0.0 and ctl.evidence.implied == [f_p]
 
 
 def test_a_pulse_on_the_evidence_that_crept_is_evidence_not_the_end():
@@ -436,13 +436,13 @@ def test_a_pulse_on_the_evidence_that_crept_is_evidence_not_the_end():
     ctl = _true_model_controller()
     for f, d in [(300.0, 2e-4), (200.0, 3e-5), (150.0, 2e-5)]:
         ctl.learn(3, f, d)
-    ctl.misses, ctl.errors = 3, [2.0, 2.0]
+    ctl.cautious.misses, ctl.fitted.errors = 3, [2.0, 2.0]
     ctl.estimator.rel_misfit = 0.8
     n, f_p = ctl.plan_pulse(1e-6)
-    assert f_p > 0.0 and ctl._planned == (1, f_p, ctl.predict(n, f_p))  # on the evidence
+    assert f_p > 0.0 and ctl.evidence.planned == (1, f_p, ctl.predict(n, f_p))  # on the evidence
     ctl.seq.pred = ctl.predict(n, f_p)
     ctl.learn(n, f_p, 0.1 * ctl.seq.pred)
-    assert ctl.f_lb == f_p and ctl.implied == []
+    assert ctl.evidence.f_lb == f_p and ctl.evidence.implied == []
     ctl.seq.pulses = 1
     assert ctl.plan_pulse(1e-6)[1] > f_p
 
@@ -454,7 +454,7 @@ def _two_pulses_of_one_width(moves: tuple[float, float]) -> ExactController:
     for f, d in zip((217.77, 239.55), moves, strict=True):
         ctl.learn(2, f, d)
     ctl.trust.value = 1.0
-    ctl.errors = [0.17, 0.17]
+    ctl.fitted.errors = [0.17, 0.17]
     return ctl
 
 
@@ -465,12 +465,12 @@ def test_a_fit_unlike_eq3_on_one_width_widens_one_step_at_the_heights_tried():
     the settings' estimates on pulses of one width, the next pulse is one sample wider and no
     higher than the highest of that width."""
     ctl = _two_pulses_of_one_width((1.72e-4, 1.94e-4))
-    assert ctl._unlike_eq3() and ctl.estimator.prior_distance() > 10.0
+    assert ctl.fitted.unlike_eq3() and ctl.estimator.prior_distance() > 10.0
     n, f_p = ctl.plan_pulse(6.34e-4)
     assert n == 3 and 0.0 < f_p <= 239.55
     # a third width made: the fit knows how the move grows with the width
     ctl.learn(3, 239.55, 4.4e-4)
-    assert not ctl._unlike_eq3()
+    assert not ctl.fitted.unlike_eq3()
 
 
 def test_a_fit_near_the_estimates_plans_as_wide_as_the_model_says():
@@ -478,6 +478,6 @@ def test_a_fit_near_the_estimates_plans_as_wide_as_the_model_says():
     moves = tuple(pulse_displacement(f, 2 * T, plant["m"], plant["f_c"], plant["c"])
                   for f in (217.77, 239.55))
     ctl = _two_pulses_of_one_width(moves)
-    assert not ctl._unlike_eq3() and ctl.estimator.prior_distance() < 1.0
+    assert not ctl.fitted.unlike_eq3() and ctl.estimator.prior_distance() < 1.0
     n, f_p = ctl.plan_pulse(5e-3)
     assert n == 3 and f_p > 239.55  # the width the model's exploration allows, higher
