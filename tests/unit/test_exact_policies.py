@@ -22,6 +22,8 @@ from papwc.controllers.exact_policies import (
     PROBE_STEP,
     REJECT_AFTER,
     TRIED_STEP,
+    TWO_PULSE_HUNT,
+    TWO_PULSE_PROGRESS,
     WIDER,
     Plan,
     Refusal,
@@ -257,3 +259,48 @@ def test_a_pulse_predicted_by_the_model_moves_as_the_table_of_the_model_does():
         ctl.learn(n, f, pulse_displacement(f, n * T, 150.0, 100.0, 700.0))
     assert ctl.displacement(2, 200.0) == pytest.approx(
         pulse_displacement(200.0, 2 * T, 150.0, 100.0, 700.0), rel=1e-6)
+
+
+def _table_1_fit() -> object:
+    """A controller whose fit is Table 1's (Eq. (3) exactly), trusted, far into a maneuver."""
+    ctl = _exact(x_resolution=1e-7)
+    for n, f in ((5, 262.7), (1, 140.0), (3, 230.0), (1, 131.0), (2, 190.0)):
+        ctl.learn(n, f, pulse_displacement(f, n * T, 150.0, 100.0, 700.0))
+    ctl.learn(1, 129.0, 0.0)  # the breakaway bracket closed: 129 to 131 N
+    ctl.trust.value = 1.0
+    ctl.fitted.errors = [1e-3, 1e-3]
+    ctl.seq.e0 = 1e-2
+    return ctl
+
+
+def test_two_pulse_moves_that_do_not_bring_the_table_nearer_are_a_hunt_and_end():
+    """Below its smallest pulse (one sample at the breakaway, 10 um on Table 1) the fitted
+    model moves away by it and back. Two-pulse moves started from errors no smaller than
+    TWO_PULSE_PROGRESS of the smallest one of the maneuver started from are a hunt: after
+    TWO_PULSE_HUNT of them no further one is made (each way out goes far beyond 1.5*abs(e)).
+    One that made progress starts the count anew; a way out that did not move is not
+    counted; within two counts (the encoder cannot show the progress) nothing is counted."""
+    ctl = _table_1_fit()
+    fitted = ctl.fitted
+    e = 0.3 * ctl.displacement(1, ctl.f_floor)
+
+    def away(d: float) -> bool:
+        choice = fitted.plan(d)
+        out = isinstance(choice, Plan) and choice.f_p < 0.0
+        if out:
+            fitted.moved(True)
+        return out
+
+    assert away(e) and fitted.two_best == e and fitted.two_fails == 0
+    for k in range(TWO_PULSE_HUNT):
+        assert away(0.95 * e) and fitted.two_fails == k + 1
+    assert not away(0.95 * e)  # a hunt
+    assert away(TWO_PULSE_PROGRESS * 0.95 * e * 0.99) and fitted.two_fails == 0  # progress
+    fitted.plan(e)  # a retry whose way out did not move: not counted
+    fitted.moved(False)
+    assert fitted.two_fails == 0
+    fitted.reset()
+    fitted.two_best, fitted.two_fails = 1.5e-7, TWO_PULSE_HUNT  # within two counts
+    assert away(1.9e-7)
+    ctl.reset()
+    assert fitted.two_best == 0.0 and fitted.two_fails == 0

@@ -407,7 +407,7 @@ def test_outcome_codes_are_outputs_with_their_words():
 
 def test_a_stopped_maneuver_says_why_and_a_settled_one_is_within_tolerance():
     budget = _run(TABLE_1, _settings("exact", tolerance=1e-9, m_est=60.0, f_c_est=40.0,
-                                     max_pulses=1), iterations=1)
+                                     settle_timeout=0.1), iterations=1)
     s = summarize(budget.traces[0], 1e-9)
     assert (s["outcome"], s["outcome_reason"]) == ("stopped", "pulse_budget")
     assert abs(s["final_error_m"]) > 1e-9

@@ -34,8 +34,8 @@ less than one sample at the stiction force, Eq. (20). This controller
   the updates that follow where it does not fit the one that learned the pulse;
 * stops once ``abs(e)`` is below what a move can achieve (half the encoder resolution, or
   the model's relative error times the move), when even the cautious pulse cannot help a
-  rejected model (``model_rejected``), and after ``max_pulses`` pulses in one maneuver at
-  the latest, so it cannot limit-cycle.
+  rejected model (``model_rejected``), and once the maneuver has taken ``settle_timeout``
+  seconds (its time budget, ``pulse_budget``) at the latest, so it cannot limit-cycle.
 
 Standard library only (bundled into the controller FMU).
 """
@@ -78,6 +78,10 @@ EXACT_SETTINGS: tuple[Variable, ...] = (
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
              "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
              "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True),
+    Variable("settle_timeout", "Time budget of a maneuver: once this long after its start "
+             "(the first sample after a reset) without settling, the controller fires no "
+             "further pulse and stops (outcome_reason pulse_budget); max_pulses does not "
+             "bound this kind", "s", 10.0, min=0.0, min_open=True, max=1e6, nominal=1.0),
 )
 
 
@@ -109,6 +113,7 @@ def _counted(update: Callable[..., float]) -> Callable[..., float]:
     def counted(self: ExactController, t: float, x_meas: float, x_ref: float) -> float:
         ops = self.ops
         ops.reset()
+        self.samples += 1
         if self.estimator.job:
             self.seq.idle_x = math.nan  # a sample with work to do is not only counted
         try:
@@ -135,9 +140,9 @@ class ExactController(PulseControllerBase):
 
     It reads the settings of kind ``exact`` (see
     :data:`papwc.model.controller_settings.CONTROLLER_SETTINGS`): ``c_est`` (initial
-    estimate of c, N.s/m), ``history`` (pulses kept for the fit), ``max_pulses``
-    (pulses per maneuver after which it stops), ``x_resolution`` (resolution of
-    the measurement, m, weights the fit), ``f_s_tol`` (relative width of the
+    estimate of c, N.s/m), ``history`` (pulses kept for the fit), ``settle_timeout``
+    (s, the time of a maneuver after which it fires no further pulse), ``x_resolution``
+    (resolution of the measurement, m, weights the fit), ``f_s_tol`` (relative width of the
     f_s bracket below which no more probing is done) and ``trust0`` (the trust
     region of a new controller).
     """
@@ -152,6 +157,9 @@ class ExactController(PulseControllerBase):
         self.f_s_tol = float(settings.f_s_tol)
         #: The operations of the present update (:mod:`.budget`).
         self.ops = Ops()
+        #: Samples (updates) since the maneuver started: its time is ``samples*T``.
+        self.samples = 0
+        self.settle_timeout = float(settings.settle_timeout)
         #: Ratios measured/model of the history's pulses under one model (:meth:`correction`;
         #: derived, not state: the key ``None`` holds the model they are for).
         self._ratios: dict = {}
@@ -189,9 +197,16 @@ class ExactController(PulseControllerBase):
         anew (the cautious one forgets its misses, the evidence the heights that did not
         move: the table has moved since, its breakaway force is drawn anew)."""
         super().reset()
+        self.samples = 0
         for policy in self.policies:
             policy.reset()
         self.revision += 1  # f_low may differ
+
+    def budget_spent(self, ahead: float = 0.0) -> bool:
+        """Whether this maneuver's time budget (``settle_timeout``, s, from its start) is
+        spent, or will be within ``ahead`` seconds: a maneuver that has not settled by then
+        fires no further pulse."""
+        return (self.samples * self.T + ahead) >= self.settle_timeout
 
     def spare(self) -> None:
         """The rest of the sample's budget: the refit of Eq. (3) under way goes on (the
@@ -458,6 +473,7 @@ class ExactController(PulseControllerBase):
         ev = self.evidence
         visible = math.isfinite(d_along) and abs(d_along) > max(noise, 0.5 * est.x_resolution)
         ev.moved = ev.moved or visible
+        self.fitted.moved(visible)
         if ev.learn_move(n, f_p, d, d_along, pred, visible, noise):
             self.fitted.after_single = True
             return
@@ -520,7 +536,7 @@ class ExactController(PulseControllerBase):
         """The noise of a measured move (``meas_sigma``), the estimator's state
         (``estimator.*``) and each policy's (``fitted.*``, ``cautious.*``, ``evidence.*``)."""
         est = self.estimator
-        out = {**super().law_state(), "meas_sigma": est.meas_sigma}
+        out = {**super().law_state(), "meas_sigma": est.meas_sigma, "samples": self.samples}
         out.update({f"estimator.{k}": v for k, v in est.state().items()})
         for policy in self.policies:
             out.update({f"{policy.name}.{k}": v for k, v in policy.state().items()})
@@ -536,4 +552,5 @@ class ExactController(PulseControllerBase):
         for policy in self.policies:
             policy.set_state(parts.get(policy.name, {}))
         self.estimator.meas_sigma = float(values["meas_sigma"])
+        self.samples = int(values["samples"])
         self.estimator.set_state(parts.get("estimator", {}))

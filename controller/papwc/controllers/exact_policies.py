@@ -35,13 +35,24 @@ from ..model.pulse import bisect_increasing
 from .breakaway import BreakawayEvidence
 from .budget import PLAN_RESERVE
 from .interface import Reason
-from .sequencer import Z_DECIDE
+from .sequencer import RUNAWAY_FACTOR, Z_DECIDE
 
 if TYPE_CHECKING:
     from .exact import ExactController
 
 __all__ = ["Cautious", "Evidence", "FittedModel", "Plan", "Policy", "Refusal"]
 
+#: Two-pulse moves (away, then back) started from an error no smaller than
+#: TWO_PULSE_PROGRESS of the smallest one of the maneuver started from (beyond two counts,
+#: where the encoder shows the progress), TWO_PULSE_HUNT of them, are a hunt: no further one
+#: is made. Each way out goes far beyond 1.5*abs(e) (realism_mc_fresh rigid-s1-d002: 196 N
+#: out by 34 um, back to 0.5-3 um, 16 times in one maneuver); one or two more may land (a
+#: drive's ringing).
+TWO_PULSE_PROGRESS = 0.8
+TWO_PULSE_HUNT = 3
+#: A two-pulse move (away, then back) is begun only with this many samples left of the
+#: maneuver's time budget (two one-sample pulses, each coasting and read at rest).
+TWO_PULSE_SAMPLES = 10
 #: Relative error of the last prediction beyond which planned pulses stay near those tried.
 TRIED_AFTER = 0.5
 #: Largest step above the highest height tried (of at least the planned width) while the
@@ -168,9 +179,10 @@ class FittedModel(Policy):
     pulses tried after a prediction missed by more than ``TRIED_AFTER``. Below d_small: the
     smallest pulse toward the target where it lands within ``abs(e)/2``; a two-pulse move
     (away by d_small, back by ``abs(e) + d_small``) where the trust and the maneuver's start
-    allow; a probe of the breakaway bracket below ``f_floor``. It refuses
-    (``no_move_helps``) below what a move can achieve: half the resolution, or the model's
-    relative error times the move.
+    allow, but not after ``TWO_PULSE_HUNT`` in a row that did not bring the table nearer (a
+    hunt); a probe of the breakaway bracket below ``f_floor``. It refuses (``no_move_helps``)
+    below what a move can achieve: half the resolution, or the model's relative error times
+    the move.
 
     Attributes
     ----------
@@ -181,21 +193,55 @@ class FittedModel(Policy):
         way back of a two-pulse move).
     after_single : bool
         The last pulse had one sample.
+    two_best : float
+        The smallest error a two-pulse move of this maneuver started from, m (0: none).
+    two_fails : int
+        This maneuver's two-pulse moves since that one that started from no smaller error
+        (``TWO_PULSE_HUNT`` of them: no further one); ``two_out``: the last pulse was the
+        way out of one, ``two_counted``: counted so.
     """
 
     name = "fitted"
-    FIELDS = ("errors", "fine_error", "after_single")
+    FIELDS = ("errors", "fine_error", "after_single", "two")
 
     def __init__(self, law: ExactController) -> None:
         super().__init__(law)
         self.errors = [1.0, 1.0]
         self.fine_error = 1.0
         self.after_single = False
+        self.reset()
+
+    def reset(self) -> None:
+        self.two_best = 0.0
+        self.two_fails = 0
+        self.two_out = self.two_counted = False
 
     def rel(self) -> float:
         """Relative error expected of the model: the smaller of the fit's misfit and the
         last two predictions' larger error (at least 1e-9)."""
         return max(min(self.law.estimator.rel_misfit, max(self.errors)), 1e-9)
+
+    def _hunting(self, d: float) -> bool:
+        """Whether a two-pulse move from the error d (m) would hunt: ``TWO_PULSE_HUNT`` of this
+        maneuver's two-pulse moves that moved the table started from errors no smaller than
+        ``TWO_PULSE_PROGRESS`` of the smallest one started from before (beyond two counts,
+        where the encoder shows the progress). If not, it counts this one."""
+        retry = (self.two_best > 0.0 and d >= TWO_PULSE_PROGRESS * self.two_best
+                 and d > 2.0 * self.law.estimator.x_resolution)
+        if retry and self.two_fails >= TWO_PULSE_HUNT:
+            return True
+        self.two_fails = self.two_fails + 1 if retry else 0
+        self.two_counted = retry
+        self.two_best = min(self.two_best, d) if self.two_best > 0.0 else d
+        self.two_out = True
+        return False
+
+    def moved(self, visible: bool) -> None:
+        """A pulse ended, having moved the table ``visible``-ly or not: a way out that did
+        not move made no two-pulse move (it is not counted)."""
+        if self.two_out and not visible and self.two_counted:
+            self.two_fails -= 1
+        self.two_out = self.two_counted = False
 
     def judge(self, n: int, r: float) -> None:
         """A pulse of n samples moved with the relative error r against its prediction."""
@@ -225,8 +271,10 @@ class FittedModel(Policy):
         rel_back = max(min(rel, self.fine_error), 1e-9)
         if (trust * two >= d_small and d > max(0.5 * est.x_resolution, rel_back * two)
                 and d + d_small / trust <= abs(law.seq.e0)):
-            if law.pulses + 2 > law.max_pulses:
-                return Refusal(Reason.PULSE_BUDGET)
+            if law.budget_spent(TWO_PULSE_SAMPLES * law.T):
+                return Refusal(Reason.PULSE_BUDGET)  # no time left to come back
+            if self._hunting(d):
+                return Refusal(Reason.NO_MOVE_HELPS)
             return Plan(1, -toward * f_lo)  # away by d_small; back by d + d_small next
         # A height below the lowest known to move may move the mass less: a probe of f_s
         # toward the target, planned to move trust*|e| if it moves at all.
@@ -236,10 +284,10 @@ class FittedModel(Policy):
                 return Plan(1, toward * law._amplitude(trust * d, 1, f_probe_lo, f_lo))
             # the smallest pulse that may move: just above the highest height that did not
             f_probe = min(f_lo, max(est.f_s_lo * (1.0 + 2.0 * law.f_s_tol), f_probe_lo))
-            if f_probe < f_lo and law.displacement(1, f_probe) < 2.0 * d:
-                return Plan(1, toward * f_probe)  # (moving as predicted, it leaves |e| smaller)
-        if d_small < 2.0 * d and abs(d_small - d) < d:
-            return Plan(1, toward * f_lo)
+            if f_probe < f_lo and law.displacement(1, f_probe) <= RUNAWAY_FACTOR * d:
+                return Plan(1, toward * f_probe)  # (moving as predicted, within the bound)
+        # (the smallest pulse toward the target predicted to move 1.5 to 2 times abs(e) would
+        # land nearer, but beyond the bound 1.5*abs(e) a pulse is held to)
         return Refusal(Reason.NO_MOVE_HELPS)
 
     def plan_width(self, goal: float, f_lo: float) -> tuple[int, float, float]:
@@ -303,12 +351,17 @@ class FittedModel(Policy):
 
     def state(self) -> dict[str, Any]:
         return {"errors": list(self.errors), "fine_error": self.fine_error,
-                "after_single": int(self.after_single)}
+                "after_single": int(self.after_single),
+                "two": [self.two_best, float(self.two_fails), float(self.two_out),
+                        float(self.two_counted)]}
 
     def set_state(self, values: Mapping[str, Any]) -> None:
         self.errors = _numbers(values, "errors", self.name, size=2)
         self.fine_error = float(values["fine_error"])
         self.after_single = bool(values["after_single"])
+        best, fails, out, counted = _numbers(values, "two", self.name, size=4)
+        self.two_best, self.two_fails = best, int(fails)
+        self.two_out, self.two_counted = bool(out), bool(counted)
 
 
 class Cautious(Policy):
