@@ -404,7 +404,7 @@ def test_wrong_communication_step_is_discarded(controller: FmuInstance, paper) -
                            "= 300.0 N"),
         ("t_p_max", -math.inf, "parameter t_p_max = -inf s: must be a finite number or inf; "
                                "t_p_max_given = false selects no bound"),
-        ("history", 0, "parameter history = 0: must be a whole number 1 <= history <= 1000"),
+        ("history", 0, "parameter history = 0: must be a whole number 1 <= history <= 52"),
         ("max_pulses", -1, "parameter max_pulses = -1: must be a whole number 1 <= max_pulses "
                            "<= 1000000"),
         ("c_est", -1.0, "parameter c_est = -1.0 N.s/m: must satisfy 0 <= c_est <= 1e+09 N.s/m"),

@@ -90,8 +90,8 @@ def test_scenario_errors_name_the_file_and_the_field(tmp_path, change, field, me
 
 #: An exact controller's table with each of its own settings wrong.
 EXACT_ERRORS = [
-    ("history = 0", "history", "history = 0: must be a whole number 1 <= history <= 1000"),
-    ("history = -1", "history", "history = -1: must be a whole number 1 <= history <= 1000"),
+    ("history = 0", "history", "history = 0: must be a whole number 1 <= history <= 52"),
+    ("history = -1", "history", "history = -1: must be a whole number 1 <= history <= 52"),
     ('c_est = "x"', "c_est", "c_est = 'x': must be a number"),
     ("f_s_tol = 0", "f_s_tol", "f_s_tol = 0: must satisfy 0 < f_s_tol <= 1"),
     ("f_s_tol = 1.5", "f_s_tol", "f_s_tol = 1.5: must satisfy 0 < f_s_tol <= 1"),

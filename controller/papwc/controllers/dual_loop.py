@@ -488,13 +488,13 @@ class DualLoopController(ExactController):
             # so may the next one that moves it (a drive that cannot move the table less)
             self.seq.refusal = Reason.NO_MOVE_HELPS
             return 1, 0.0
-        planned = self._planned
+        planned = self.evidence.planned
         trust = self.trust
         ratio = min(self.move_ratio(w) for w in RATIO_WIDTHS)
         land = short < 0.5 * abs(e)
         try:
             while True:
-                self._planned = planned
+                self.evidence.planned = planned
                 trust.cap = min(1.0, RUNAWAY_FACTOR / ratio)
                 if land:
                     trust.cap = min(trust.cap, 1.0 - short / abs(e))
@@ -518,7 +518,7 @@ class DualLoopController(ExactController):
                 if planned_1 is None:
                     break
                 f_p, pred = planned_1
-                self._planned = (1, f_p, pred)
+                self.evidence.planned = (1, f_p, pred)
                 return 1, math.copysign(f_p, e)
         finally:
             trust.cap = 1.0
@@ -562,8 +562,8 @@ class DualLoopController(ExactController):
                 pred = self.displacement(1, f) if f > 0.0 else 0.0
             if not f > 0.0:
                 f, pred = min(self._f_still() * (1.0 + JUMP_STEP), push_max), goal
-        if 0.0 < f < self.f_lb * (1.0 + JUMP_STEP):
-            f, pred = min(self.f_lb * (1.0 + JUMP_STEP), push_max), max(pred, goal)
+        if 0.0 < f < self.evidence.f_lb * (1.0 + JUMP_STEP):
+            f, pred = min(self.evidence.f_lb * (1.0 + JUMP_STEP), push_max), max(pred, goal)
         pred = max(pred, max((d for f_i, d in curve.points if f_i <= f), default=0.0))
         if f > 0.0 and pred * ratio <= bound:
             return f, pred
@@ -573,7 +573,7 @@ class DualLoopController(ExactController):
         """Highest height known not to move the table, N: of a one-sample pulse since it last
         moved, the fit's bracket of the breakaway, or the fitted sliding friction."""
         est = self.estimator
-        return max(est.f_s_lo, est.f_c_hat, self.f_lb)
+        return max(est.f_s_lo, est.f_c_hat, self.evidence.f_lb)
 
     def _lowered(self, goal: float, f_hi: float) -> float:
         """Highest height (N) below f_hi whose one-sample move on the law's model is at most
@@ -582,7 +582,7 @@ class DualLoopController(ExactController):
         f_lo = self._f_still() * (1.0 + JUMP_STEP)
         if not f_lo < f_hi or self.displacement(1, f_lo) > goal:
             return 0.0
-        self._planned = (0, 0.0, 0.0)
+        self.evidence.planned = (0, 0.0, 0.0)
         return bisect_increasing(lambda f: self.displacement(1, f), goal, f_lo, f_hi,
                                  LOWER_TOL * f_hi)[0]
 
@@ -599,7 +599,7 @@ class DualLoopController(ExactController):
                 self.moves_1 = (self.moves_1 + [abs(d)])[-KEEP_RATIOS:]
                 if f_p * d > 0.0:
                     self.curve.add(abs(f_p), abs(d))
-                if 0.0 < self.f_lb < abs(f_p) <= self.f_lb * (1.0 + JUMP_STEP):
+                if 0.0 < self.evidence.f_lb < abs(f_p) <= self.evidence.f_lb * (1.0 + JUMP_STEP):
                     # it broke away just above a height that did not move the table
                     self.jumps = (self.jumps + [abs(d)])[-KEEP_RATIOS:]
         super().learn(n, f_p, d)

@@ -103,6 +103,7 @@ class ControllerSettings:
     x_resolution: float = 0.0
     f_s_tol: float = 0.02
     trust0: float = 0.5
+    settle_timeout: float = 10.0
     # pid
     k_i: float | None = None
     a_max: float | None = None

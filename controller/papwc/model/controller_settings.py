@@ -250,7 +250,7 @@ OUTCOME_REASONS: tuple[str, ...] = (
     "",  # 0: active
     "within_tolerance",  # 1: settled
     "no_move_helps",  # 2: no pulse it can make would bring the mass nearer to the target
-    "pulse_budget",  # 3: max_pulses pulses in this maneuver
+    "pulse_budget",  # 3: max_pulses pulses in this maneuver (exact, dual_loop: settle_timeout)
     "model_rejected",  # 4: its model predicts so badly that no pulse can be trusted
     "time_ended",  # 5: the maneuver ended while the controller was still active
     "invalid_measurement",  # 6: a reading or reference not finite, or beyond 1e6 m
