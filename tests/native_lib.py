@@ -204,11 +204,12 @@ class PcConfig(ctypes.Structure):
     """``PcConfig`` of papwc_controller.h."""
 
     _fields_ = (_fields(_I32, "kind guarded flexible automatic regressor update_covariance "
-                              "floor_mode padding") + [("T", _D)]
+                              "floor_mode window") + [("T", _D)]
                 + _fields(_I64, "n_max max_pulses mode_samples rest_samples hunt_max")
                 + _fields(_D, "rest_band tolerance e_band f_p_max f_c_est m_est m_d_est k_p k_d "
                               "K_c floor_raise trust0 lambda_1 lambda_2 b_min b_max delta_inv lam "
-                              "a1_min a1_max a2_min a2_max pid_k_p pid_k_d pid_k_i a_max v_max"))
+                              "a1_min a1_max a2_min a2_max pid_k_p pid_k_d pid_k_i a_max v_max "
+                              "w_band q"))
 
 
 class PcRest(ctypes.Structure):
@@ -243,7 +244,10 @@ class PcLaw(ctypes.Structure):
 
     _fields_ = (_fields(_D, "f_p_floor b_hat F_inv a1 a2 p11 p12 p22 f_p_plan t_p_plan")
                 + [("creeps", _D * 4), ("k", _I64)]
-                + _fields(_D, "integral x_from x_to x_ref_now side") + [("reversals", _I64)])
+                + _fields(_D, "integral x_from x_to x_ref_now side") + [("reversals", _I64)]
+                + [("holding", _I64)] + _fields(_D, "u_hold u_last") + [("ring", _D * 16)]
+                + [("ring_n", _I64)] + _fields(_D, "h_x0 h_sum")
+                + _fields(_I64, "h_n h_look coasting") + [("u_coast", _D)])
 
 
 def controller_struct() -> type[ctypes.Structure]:
@@ -263,7 +267,10 @@ LAW_FIELDS = {"f_p_floor": "f_p_floor", "b_hat": "b_hat", "F_inv": "F_inv",
               "t_p_plan": "t_p_plan", "A1": "a1", "A2": "a2", "P11": "p11", "P12": "p12",
               "P22": "p22", "f_p_plan": "f_p_plan", "creeps": "creeps", "k": "k",
               "integral": "integral", "x_from": "x_from", "x_to": "x_to",
-              "x_ref_now": "x_ref_now", "side": "side", "reversals": "reversals"}
+              "x_ref_now": "x_ref_now", "side": "side", "reversals": "reversals",
+              **{name: name for name in ("holding", "u_hold", "u_last", "ring", "ring_n",
+                                         "h_x0", "h_sum", "h_n", "h_look", "coasting",
+                                         "u_coast")}}
 
 
 def controller_state(c: ctypes.Structure, names: list[str]) -> dict[str, Any]:

@@ -44,8 +44,8 @@ _isfinite = math.isfinite
 
 
 class PulseControllerPython(CheckedSlave):
-    """Adaptive pulse controller (PWC, PAPWC, exact, dual_loop; or the PID baseline) sampled at
-    each step.
+    """Adaptive pulse controller (PWC, PAPWC, exact, dual_loop, the 1 kHz hybrid; or the PID
+    baseline) sampled at each step.
 
     Parameters (the settings of a scenario's ``[[controller]]`` table and the
     sample period ``T``) are read when initialization ends; ``x_meas`` (m) and

@@ -2,10 +2,11 @@
  *
  * Each function below is the method of the Python class named in its comment, written with
  * the same operations in the same order, so that the same doubles come out: Python floats
- * are IEEE doubles; math.sqrt, math.ceil, math.floor, math.copysign and x ** y (the C
- * library's pow) map to their C functions; a Python int that counts samples is an int64_t
- * here (no count reaches 2^63); min(a, b) and max(a, b) keep the first argument unless
- * the second is smaller (larger), as Python's do, also with a NaN (py_min, py_max).
+ * are IEEE doubles; math.sqrt, math.ceil, math.floor, math.copysign, math.exp and x ** y
+ * (the C library's pow) map to their C functions (the same libm in one process); a Python
+ * int that counts samples is an int64_t here (no count reaches 2^63; a // b of counts >= 0
+ * is a / b, a % m is py_mod); min(a, b) and max(a, b) keep the first argument unless the
+ * second is smaller (larger), as Python's do, also with a NaN (py_min, py_max).
  */
 #include "papwc_controller.h"
 
@@ -25,6 +26,12 @@ static double py_min(double a, double b) { return b < a ? b : a; }
 static double py_max(double a, double b) { return b > a ? b : a; }
 static int64_t i_min(int64_t a, int64_t b) { return b < a ? b : a; }
 static int64_t i_max(int64_t a, int64_t b) { return b > a ? b : a; }
+/* a % m as Python computes it for m > 0: never negative */
+static int64_t py_mod(int64_t a, int64_t m)
+{
+    int64_t r = a % m;
+    return r < 0 ? r + m : r;
+}
 
 /* x ** y as Python computes it: the C library's pow. The exponent is read through a
  * volatile so that no compiler turns pow(x, 2.0) into x*x: glibc's pow(x, 2.0) differs
@@ -1221,6 +1228,224 @@ static double seq_update(PcController *c, double x_meas, double x_ref)
     return seq_decide(c, x_ref);
 }
 
+/* ---- the PID's in-position window (pid.py, PidSequencer.window_update) --------------- */
+
+/* pid.rounding_bias: the largest bias of the mean of readings rounded to the count q (m)
+ * under encoder noise of variance sigma2 (m^2), m (math.exp: the C library's exp) */
+static double rounding_bias(double sigma2, double q)
+{
+    if (!(q > 0.0)) return 0.0;
+    return 0.5 * q * exp(-2.0 * PC_PI * PC_PI * sigma2 / (q * q));
+}
+
+/* PidSequencer.still: the last readings' least-squares slope within Z_DECIDE standard errors
+ * of 0 (summed one after another, as the Python loop) */
+static int window_still(const PcController *c)
+{
+    const PcLaw *L = &c->law;
+    int64_t k = L->ring_n;
+    double mid = 0.5 * (PC_NOISE_WINDOW - 1), first, slope = 0.0;
+    int i;
+    if (k < PC_NOISE_WINDOW) return 0;
+    first = L->ring[py_mod(k, PC_NOISE_WINDOW)];
+    for (i = 0; i < PC_NOISE_WINDOW; i++)
+        slope += ((double)i - mid) * (L->ring[py_mod(k + i, PC_NOISE_WINDOW)] - first);
+    slope /= PC_SLOPE_NORM;
+    return fabs(slope) <= PC_Z_DECIDE * sqrt(c->rest.sigma2 / PC_SLOPE_NORM);
+}
+
+/* PidSequencer.recent_mean: the mean of the last m readings (m <= PC_NOISE_WINDOW), m */
+static double window_recent_mean(const PcLaw *L, int64_t m)
+{
+    double total = 0.0;
+    int64_t i;
+    for (i = 1; i <= m; i++) total += L->ring[py_mod(L->ring_n - i, PC_NOISE_WINDOW)];
+    return total / (double)m;
+}
+
+/* PidSequencer.reading_margin */
+static double reading_margin(const PcRest *r)
+{
+    return py_max(r->band, PC_BAND_SIGMAS * sqrt(r->sigma2));
+}
+
+/* PidSequencer.pid_force: the PID acts (mode coarse) */
+static double window_pid_force(PcController *c)
+{
+    PcSequencer *q = &c->seq;
+    rest_forget_direction(&c->rest);
+    q->mode = PC_MODE_COARSE;
+    q->outcome = PC_OUTCOME_ACTIVE;
+    q->outcome_reason = PC_REASON_NONE;
+    c->law.u_last = pid_force(c, q->x_prev, q->v_hat);
+    return c->law.u_last;
+}
+
+/* PidSequencer.leave_hold */
+static double leave_hold(PcController *c)
+{
+    c->law.holding = 0;
+    return window_pid_force(c);
+}
+
+/* PidSequencer.enter_hold; the PID's holding_force is none (0 N): capped, u is not held */
+static double enter_hold(PcController *c, double u, int capped)
+{
+    PcLaw *L = &c->law;
+    L->holding = 1;
+    L->u_hold = capped ? 0.0 : u;
+    c->seq.mode = PC_MODE_WAIT;
+    L->h_x0 = c->seq.x_prev;
+    L->h_sum = 0.0;
+    L->h_n = -PC_NOISE_WINDOW;
+    L->h_look = c->rest.dwell + 1;
+    return L->u_hold;
+}
+
+/* PidSequencer.crept: the table moved under the force held */
+static int window_crept(const PcController *c)
+{
+    const PcLaw *L = &c->law;
+    int64_t n = L->h_n, w = PC_NOISE_WINDOW;
+    double last, before, d;
+    if (n < 2 * PC_NOISE_WINDOW) return 0;
+    last = window_recent_mean(L, w);
+    before = L->h_x0 + (L->h_sum - (double)w * (last - L->h_x0)) / (double)(n - w);
+    d = fabs(last - before) - rounding_bias(c->rest.sigma2, c->cfg.q);
+    return d > 0.0 && d * d > PC_Z_DECIDE * PC_Z_DECIDE * c->rest.sigma2 *
+                                  (1.0 / (double)w + 1.0 / (double)(n - w));
+}
+
+/* PidSequencer.hold: inside the window, the force held (PidSequencer.inside), or the PID
+ * again once the table is outside */
+static double window_hold(PcController *c, double x_ref)
+{
+    PcLaw *L = &c->law;
+    PcSequencer *q = &c->seq;
+    double x = q->x_prev, tol = c->cfg.tolerance, e, s, bias;
+    if (!pid_arrived(c) || fabs(x_ref - x) > c->cfg.w_band + reading_margin(&c->rest))
+        return leave_hold(c);
+    L->h_n += 1;
+    if (L->h_n <= 0) {
+        /* the force held settles: its readings are not yet those of the rest */
+        L->h_x0 = x;
+        return L->u_hold;
+    }
+    L->h_sum += x - L->h_x0;
+    if (window_crept(c)) {
+        L->h_x0 = window_recent_mean(L, PC_NOISE_WINDOW);
+        L->h_sum = 0.0;
+        L->h_n = PC_NOISE_WINDOW;
+        L->h_look = PC_NOISE_WINDOW;
+    }
+    if (L->h_n < L->h_look) return L->u_hold;
+    while (L->h_look <= L->h_n) L->h_look = (3 * L->h_look + 1) / 2;
+    e = x_ref - (L->h_x0 + L->h_sum / (double)L->h_n);
+    s = sqrt(c->rest.sigma2 / (double)L->h_n);
+    bias = rounding_bias(c->rest.sigma2, c->cfg.q);
+    if (fabs(e) - PC_Z_DECIDE * s - bias > c->cfg.w_band) return leave_hold(c);
+    if (fabs(e) + PC_Z_DECIDE * s + bias <= tol) {
+        seq_settle(c);
+        return L->u_hold;
+    }
+    if (q->outcome == PC_OUTCOME_SETTLED && fabs(e) - PC_Z_DECIDE * s - bias > tol) {
+        q->mode = PC_MODE_WAIT;
+        q->outcome = PC_OUTCOME_ACTIVE;
+        q->outcome_reason = PC_REASON_NONE;
+    }
+    return L->u_hold;
+}
+
+/* PidSequencer.coasts_into_window */
+static int coasts_into_window(const PcController *c, double x_ref)
+{
+    double v = c->seq.v_hat, d;
+    if (v == 0.0) return 0;
+    d = c->cfg.m_est * v * v / (2.0 * c->cfg.f_c_est);
+    return fabs(x_ref - c->seq.x_prev - copysign(d, v)) <= c->cfg.w_band;
+}
+
+/* PidSequencer.window_read: the speed, the last readings, the rest detector; whether at
+ * rest by its band and dwell (the force-free readings once the reference has arrived:
+ * quiet_readings) */
+static int window_read(PcController *c, double x_meas, double x_ref)
+{
+    PcLaw *L = &c->law;
+    PcSequencer *q = &c->seq;
+    PcRest *r = &c->rest;
+    double dx;
+    int at_rest;
+    L->ring[py_mod(L->ring_n, PC_NOISE_WINDOW)] = x_meas;
+    L->ring_n += 1;
+    if (q->first) {
+        q->first = 0;
+        q->v_hat = 0.0;
+        rest_start_run(r, x_meas);
+        q->e0 = x_ref - x_meas;
+        q->x_prev = x_meas;
+        return 0;
+    }
+    dx = x_meas - q->x_prev;
+    q->v_hat = dx / c->cfg.T;
+    q->x_prev = x_meas;
+    at_rest = rest_read(&c->cfg, r, x_meas, L->holding != 0);
+    if (pid_arrived(c)) at_rest = rest_force_free(&c->cfg, r, x_meas, dx, at_rest);
+    return at_rest;
+}
+
+/* PidSequencer.window_act: the force after the reading, held inside the window, else the
+ * PID's (the PID's coast_force and holding_force are none, 0 N) */
+static double window_act(PcController *c, double x_ref, int at_rest)
+{
+    PcLaw *L = &c->law;
+    PcSequencer *q = &c->seq;
+    double e, side;
+    if (L->holding) return window_hold(c, x_ref);
+    if (L->coasting) {
+        if (!pid_arrived(c)) {
+            L->coasting = 0;
+        } else if (at_rest && window_still(c)) {
+            L->coasting = 0;
+            return enter_hold(c, L->u_coast, 0);
+        } else {
+            return L->u_coast;
+        }
+    }
+    if (pid_arrived(c) && !at_rest && coasts_into_window(c, x_ref)) {
+        L->coasting = 1;
+        L->u_coast = 0.0;
+        q->mode = PC_MODE_WAIT;
+        return L->u_coast;
+    }
+    if (pid_arrived(c) && at_rest) {
+        e = x_ref - rest_x_hat(&c->rest);
+        if (fabs(e) <= c->cfg.w_band && window_still(c)) return enter_hold(c, L->u_last, 1);
+        side = e > 0.0 ? 1.0 : -1.0;
+        if (L->side && side != L->side) L->reversals += 1;
+        L->side = side;
+        if (L->reversals >= c->cfg.hunt_max && fabs(e) < fabs(q->e0)) {
+            L->holding = 1;
+            L->u_hold = 0.0;
+            seq_stop(c, PC_REASON_HUNTING);
+            return L->u_hold;
+        }
+    }
+    return window_pid_force(c);
+}
+
+/* PidSequencer.window_update: one sample of the PID with its in-position window */
+static double window_update(PcController *c, double x_meas, double x_ref)
+{
+    PcLaw *L = &c->law;
+    if (c->seq.stopped) return L->holding ? L->u_hold : 0.0;
+    if (!(-PC_X_LIMIT <= x_meas && x_meas <= PC_X_LIMIT && -PC_X_LIMIT <= x_ref &&
+          x_ref <= PC_X_LIMIT)) {
+        L->holding = 0;
+        return seq_stop(c, PC_REASON_INVALID_MEASUREMENT);
+    }
+    return window_act(c, x_ref, window_read(c, x_meas, x_ref));
+}
+
 /* PulseSequencer.reset */
 static void seq_reset(PcController *c)
 {
@@ -1254,6 +1479,7 @@ static void seq_reset(PcController *c)
 /* PidController._reset_law */
 static void pid_reset_law(PcLaw *L)
 {
+    int i;
     L->k = 0;
     L->integral = 0.0;
     L->x_from = NAN;
@@ -1261,6 +1487,17 @@ static void pid_reset_law(PcLaw *L)
     L->x_ref_now = 0.0;
     L->side = 0.0;
     L->reversals = 0;
+    L->holding = 0;
+    L->u_hold = 0.0;
+    L->u_last = 0.0;
+    L->coasting = 0;
+    L->u_coast = 0.0;
+    for (i = 0; i < PC_NOISE_WINDOW; i++) L->ring[i] = 0.0;
+    L->ring_n = 0;
+    L->h_x0 = 0.0;
+    L->h_sum = 0.0;
+    L->h_n = 0;
+    L->h_look = 0;
 }
 
 /* ---- the controller ------------------------------------------------------------------- */
@@ -1354,6 +1591,13 @@ static void make(PcController *c, const PcSettings *s, double T)
                                                     (2.0 * s->m_est);
         if (!(g->a_max > 0.0)) g->a_max = s->f_p_max / (2.0 * s->m_est);
         g->v_max = s->v_max;
+        /* pid.in_position_window */
+        g->window = s->in_position_given
+                        ? s->in_position != 0
+                        : T <= PC_IN_POSITION_T * (1.0 + PC_IN_POSITION_T_MARGIN);
+        g->w_band = s->in_position_band_given ? s->in_position_band
+                                              : py_max(s->tolerance, s->x_resolution);
+        g->q = s->x_resolution;
     }
 }
 
@@ -1377,7 +1621,7 @@ static double pid_update(PcController *c, double x_meas, double x_ref)
             c->law.k = 0;
         }
     }
-    u = seq_update(c, x_meas, x_ref);
+    u = c->cfg.window ? window_update(c, x_meas, x_ref) : seq_update(c, x_meas, x_ref);
     c->law.k += 1;
     return u;
 }
@@ -1462,7 +1706,10 @@ int pc_state_check(const PcController *c, char *msg, size_t len)
     else if ((c->trust.ring != 0 && c->trust.ring != 1) || !(c->trust.value > 0.0) ||
              c->trust.value > 1.0)
         what = "the trust region is out of its range";
-    else if (c->law.k < 0 || c->law.reversals < 0)
+    else if (c->law.k < 0 || c->law.reversals < 0 || c->law.ring_n < 0 ||
+             (c->law.holding != 0 && c->law.holding != 1) ||
+             (c->law.coasting != 0 && c->law.coasting != 1) || c->law.h_look < 0 ||
+             (c->law.holding && !q->stopped && c->law.h_look < 1))
         what = "a count of the PID is out of its range";
     if (what != NULL) {
         snprintf(msg, len, "%s", what);

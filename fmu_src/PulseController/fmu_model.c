@@ -123,14 +123,22 @@ static int32_t kind_of(const ModelData *d, int *conflict)
     return code;
 }
 
-/* The kinds of PulseControllerPython.fmu only, as a message lists them: 'exact', ... */
+/* The kinds of PulseControllerPython.fmu only, as a message lists them: 'exact', 'dual_loop'
+ * and 'hybrid' (in PC_KINDS order). */
 static void python_kinds(char *out, size_t len)
 {
     size_t used = 0;
+    int total = 0, n = 0;
     out[0] = '\0';
+#define X(code, name, native) total += !(native);
+    PC_KINDS(X)
+#undef X
 #define X(code, name, native) \
-    if (!(native) && used + 16 < len) \
-        used += (size_t)snprintf(out + used, len - used, "%s'%s'", used ? " and " : "", #name);
+    if (!(native) && used + 16 < len) { \
+        n++; \
+        used += (size_t)snprintf(out + used, len - used, "%s'%s'", \
+                                 n == 1 ? "" : n == total ? " and " : ", ", #name); \
+    }
     PC_KINDS(X)
 #undef X
 }

@@ -1,9 +1,10 @@
 /* papwc_controller.h: the pulse controllers of papwc in C, a library a drive can link.
  *
  * PWC (the paper's Section 2, Eqs. (5)-(9)), PAPWC (Section 3, Eqs. (10)-(18)) and the
- * PID baseline, with the parts they run on: rest detection from the measured position,
- * the trust region, the sequencer (coarse move, hand-over, pulse and wait, safeguards,
- * outcome) and the recursive estimators. The Python controllers of papwc.controllers are
+ * PID baseline (with its in-position window, on by default where T <= 1 ms), with the parts
+ * they run on: rest detection from the measured position, the trust region, the sequencer
+ * (coarse move, hand-over, pulse and wait, safeguards, outcome) and the recursive
+ * estimators. The Python controllers of papwc.controllers are
  * the specification: every function here is the one of the Python class named in its
  * comment, with the same operations in the same order, so that the same doubles come out
  * (tests/unit/test_native_controller.py holds the two equal bit for bit).
@@ -49,7 +50,7 @@ typedef struct {
     int32_t regressor;       /* 0 applied pulse, 1 planned pulse (Eqs. (7)-(9), (18)) */
     int32_t update_covariance;
     int32_t floor_mode;      /* PAPWC: 0 raise, 1 raise and learn d = 0, 2 learn d = 0 */
-    int32_t padding;
+    int32_t window;          /* PID: the in-position window is on */
     double T;                /* sample period, s */
     int64_t n_max;           /* largest pulse width, samples */
     int64_t max_pulses;      /* pulses per maneuver with safeguards */
@@ -65,6 +66,7 @@ typedef struct {
     double lambda_1, lambda_2, b_min, b_max;  /* PWC estimator, Eq. (8), bounds of b_hat */
     double delta_inv, lam, a1_min, a1_max, a2_min, a2_max; /* PAPWC estimator, Eq. (13)-(17) */
     double pid_k_p, pid_k_d, pid_k_i, a_max, v_max;       /* PID gains, trajectory */
+    double w_band, q;        /* PID: the window's half-width, the encoder's count, m */
 } PcConfig;
 
 /* Rest detection (papwc.controllers.rest.RestDetector): the run of readings, the noise
@@ -113,7 +115,8 @@ typedef struct {
     double idle_x, idle_ref;
 } PcSequencer;
 
-/* The control law's state: PWC (b_hat, F_inv), PAPWC (A1, A2, P), PID (trajectory). */
+/* The control law's state: PWC (b_hat, F_inv), PAPWC (A1, A2, P), PID (trajectory, the
+ * in-position window). */
 typedef struct {
     double f_p_floor;        /* amplitude floor, N */
     double b_hat, F_inv;     /* PWC, Eq. (7)-(9) */
@@ -123,6 +126,14 @@ typedef struct {
     int64_t k;               /* PID: samples since the trajectory started */
     double integral, x_from, x_to, x_ref_now, side;
     int64_t reversals;
+    int64_t holding;         /* PID's window: the force is held (the integrator frozen) */
+    double u_hold, u_last;   /* the force held, the PID's last force, N */
+    double ring[PC_NOISE_WINDOW]; /* the last readings, m */
+    int64_t ring_n;          /* readings put into the ring this maneuver */
+    double h_x0, h_sum;      /* readings under the force held: anchor, sum of deviations, m */
+    int64_t h_n, h_look;     /* their number, the number of the next decision */
+    int64_t coasting;        /* the force is cut while the table coasts into the window */
+    double u_coast;          /* the force then, N */
 } PcLaw;
 
 /* One controller: plain data. */

@@ -53,8 +53,8 @@ def test_cli_reports_a_bad_scenario_without_a_traceback(tmp_path, capsys):
 @pytest.mark.parametrize(
     ("line", "field", "message"),
     [
-        ("history = 0", "history", "history = 0: must be a whole number 1 <= history <= 1000"),
-        ("history = -1", "history", "history = -1: must be a whole number 1 <= history <= 1000"),
+        ("history = 0", "history", "history = 0: must be a whole number 1 <= history <= 52"),
+        ("history = -1", "history", "history = -1: must be a whole number 1 <= history <= 52"),
         ('c_est = "x"', "c_est", "c_est = 'x': must be a number"),
         ("f_s_tol = 0", "f_s_tol", "f_s_tol = 0: must satisfy 0 < f_s_tol <= 1"),
     ],
@@ -78,7 +78,7 @@ def test_cli_run_as_a_process_exits_2_with_one_line(tmp_path):
     assert done.returncode == 2
     assert done.stderr.splitlines() == [
         f"papwc run: error: {path}: [[controller]] #1 field 'history': history = 0: must be "
-        "a whole number 1 <= history <= 1000"]
+        "a whole number 1 <= history <= 52"]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
 

@@ -15,7 +15,7 @@ from papwc.controllers import make_controller
 from papwc.fmubuild.ssp_writer import PARAMETER_SET, build_closed_loop_ssp, closed_loop_parameters
 from papwc.master import PhysicsSlave, run_iteration
 from papwc.master.ssp_runner import read_ssp, run_ssp
-from papwc.model.controller_settings import KIND_CODES
+from papwc.model.controller_settings import KIND_CODES, OUTCOME_REASONS
 from papwc.scenario import load_scenario
 
 PROJECT_DIR = Path(__file__).resolve().parents[2]
@@ -184,3 +184,29 @@ def test_the_pwc_table_binds_its_own_settings_and_kind(friction_plant_fmu, pulse
     ours = cosim_columns(ssp, ["plant.x"])
     reference = master_x(paper, index)
     assert max(abs(a - b) for a, b in zip(ours["plant.x"], reference, strict=True)) <= TOL_X
+
+
+def test_the_dual_loop_runs_in_closed_loop_ssp_as_in_the_delayed_master(
+        friction_plant_fmu: Path, pulse_controller_fmu: Path, tmp_path: Path) -> None:
+    """flexible_dual.toml's drive told its mode, one 10 mm maneuver: ClosedLoop.ssp connects
+    the motor encoder (plant.x_d_meas -> controller.x_d_meas) for the dual_loop kind; papwc
+    cosim (plant and controller side by side, the force one sample late) runs it as the
+    Python master with timing "delayed" to 1e-12 m, and the controller acts on it: its probe
+    finds the delay, no invalid_measurement, nearer the target than it started."""
+    text = (PROJECT_DIR / "scenarios" / "flexible_dual.toml").read_text().split("[cases]")[0]
+    scenario_path = tmp_path / "flexible_dual_plain.toml"
+    scenario_path.write_text(text.replace("iterations = 3", "iterations = 1"))
+    scenario = load_scenario(scenario_path)
+    ssp = build_closed_loop_ssp(tmp_path / "out", scenario_path, friction_plant_fmu,
+                                pulse_controller_fmu, controller_index=0)
+    connections = {(c.get("startConnector"), c.get("endConnector"))
+                   for c in ssd_root(ssp).findall(".//ssd:Connection", NS)}
+    assert ("x_d_meas", "x_d_meas") in connections
+    ours = cosim_columns(ssp, ["plant.x", "controller.outcome_reason", "controller.pulses"])
+    master = master_x(scenario, 0)
+    assert len(ours["plant.x"]) == len(master)
+    assert max(abs(a - b) for a, b in zip(ours["plant.x"], master, strict=True)) <= TOL_X
+    assert ours["controller.pulses"][-1] > 0
+    invalid = OUTCOME_REASONS.index("invalid_measurement")
+    assert invalid not in set(ours["controller.outcome_reason"])
+    assert abs(scenario.maneuver.x_ref - ours["plant.x"][-1]) < 1e-5

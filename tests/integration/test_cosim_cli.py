@@ -379,7 +379,7 @@ def test_the_dual_loop_without_the_motor_encoder_says_so_at_load(
     assert wire in ssd
     bad = rewrite(good, tmp_path / "bad.ssp", [(re.escape(wire), "")])
     line = refused(capsys, tmp_path, bad)
-    assert ('<ssd:Component name="controller" source="resources/PulseController.fmu" '
+    assert ('<ssd:Component name="controller" source="resources/PulseControllerPython.fmu" '
             'type="application/x-fmu-sharedlibrary">: kind \'dual_loop\' reads the motor '
             "encoder, but controller.x_d_meas has no ssd:Connection (it would read 0 m); "
             "connect the plant's x_d_meas to controller.x_d_meas") in line, line

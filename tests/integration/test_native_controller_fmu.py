@@ -79,7 +79,8 @@ def start(fmu: FmuInstance, s: ControllerSettings, T: float, x_ref: float) -> No
 
 @settings(max_examples=24, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
-@given(data=st.data(), kind=st.sampled_from(NATIVE_KINDS), T=st.sampled_from((0.01, 0.002)),
+@given(data=st.data(), kind=st.sampled_from(NATIVE_KINDS),
+       T=st.sampled_from((0.01, 0.002, 0.001)),
        params=plant_params(), n=st.integers(10, 250), cut=st.floats(0.0, 1.0),
        x_ref=st.sampled_from((1e-2, 1e-3, -5e-5)))
 def test_the_native_fmu_is_the_python_controller_bit_for_bit(
@@ -130,6 +131,50 @@ def test_the_native_fmu_is_the_python_controller_bit_for_bit(
         other.close()
 
 
+@pytest.mark.parametrize("in_position", [None, False])
+def test_the_pids_window_goes_on_from_a_state_serialized_in_a_hold(
+        pulse_controller_unzipped: Path, in_position: bool | None) -> None:
+    """The PID at 1 kHz, tolerance 1 um, on a noisy encoder of 0.1 um counts (0.2 um rms), its
+    in-position window at its default (on) and off: the FMU's state got and serialized at the
+    first sample of its first hold (the window on; else at 1 s), set into an instance made with
+    other parameters: every output of 2 s of both the Python PID's, bit for bit."""
+    T_pid, x_ref = 0.001, 1e-3
+    s = ControllerSettings(kind="pid", tolerance=1e-6, in_position=in_position)
+    python = make_controller(s, T_pid)
+    plant = Plant({"noise_std": 2e-7, "x_resolution": 1e-7, "seed": 3})
+    fmu = FmuInstance(pulse_controller_unzipped, "controller")
+    other = FmuInstance(pulse_controller_unzipped, "other")
+    try:
+        start(fmu, s, T_pid, x_ref)
+        other.init(**settings_start_values(ControllerSettings(kind="pwc"), 0.02), x_ref=0.5)
+        saved, readings, expected, held = None, [], [], 0
+        for k in range(2000):
+            x = plant.x_meas()
+            if saved is None and (python.holding or k == 1000):
+                held = int(python.holding)
+                saved = fmu.fmu.getFMUstate()
+                restored = other.fmu.deSerializeFMUstate(fmu.fmu.serializeFMUstate(saved))
+                other.fmu.setFMUstate(restored)
+                other.fmu.freeFMUstate(restored)
+                fmu.fmu.freeFMUstate(saved)
+                other.t = fmu.t
+            u = python.update(k * T_pid, x, x_ref)
+            fmu.advance(T_pid, x_meas=x)
+            assert fmu_outputs(fmu) == python_outputs(python, u), (k, x)
+            if saved is not None:
+                readings.append(x)
+                expected.append(fmu_outputs(fmu))
+            assert plant.step(u, T_pid) is None
+        assert held == (in_position is None) and python.outcome == 1  # settled
+        for x, then in zip(readings, expected, strict=True):
+            other.advance(T_pid, x_meas=x)
+            assert fmu_outputs(other) == then
+        assert fmu.logged(FMI2_ERROR) == other.logged(FMI2_ERROR) == []
+    finally:
+        fmu.close()
+        other.close()
+
+
 # --- refusals ----------------------------------------------------------------------------------
 
 def refused(call) -> int:
@@ -150,8 +195,9 @@ def test_each_refusal_is_an_error_or_a_discard_with_one_message(
         fmu.set("K_c", 2.5)  # out of its range
         assert refused(fmu.fmu.exitInitializationMode) == FMI2_ERROR
         fmu.set("K_c", 0.8)
-        fmu.set("kind", "exact")  # not in the native build
-        assert refused(fmu.fmu.exitInitializationMode) == FMI2_ERROR
+        for kind in ("exact", "hybrid"):  # not in the native build
+            fmu.set("kind", kind)
+            assert refused(fmu.fmu.exitInitializationMode) == FMI2_ERROR
         fmu.set("kind", "papwc")
         fmu.set("kind_code", 1)  # names another kind than the String
         assert refused(fmu.fmu.exitInitializationMode) == FMI2_ERROR
@@ -197,9 +243,11 @@ def test_each_refusal_is_an_error_or_a_discard_with_one_message(
             errors = fmu.logged(FMI2_ERROR)
             assert any("parameter K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))" in e
                        for e in errors)
-            assert any("parameter kind = 'exact': must be one of 'papwc', 'pid', 'pwc' "
-                       "(PulseController.fmu is the C controller; 'exact' and 'dual_loop' are "
-                       "in PulseControllerPython.fmu" in e for e in errors)
+            for kind in ("exact", "hybrid"):
+                assert sum(f"parameter kind = '{kind}': must be one of 'papwc', 'pid', 'pwc' "
+                           "(PulseController.fmu is the C controller; 'exact', 'dual_loop' and "
+                           "'hybrid' are in PulseControllerPython.fmu, which papwc build makes "
+                           "beside it)" in e for e in errors) == 1, kind
             assert any("name different controllers" in e for e in errors)
             assert any("it was made from other parameters" in e for e in errors)
             discards = fmu.logged(FMI2_DISCARD)
@@ -212,18 +260,23 @@ def test_each_refusal_is_an_error_or_a_discard_with_one_message(
         fmu.close()
 
 
+@pytest.mark.parametrize(("kind_code", "kind"), [(3, "exact"), (6, "hybrid")])
 def test_a_refused_initialization_is_one_line_on_stderr(pulse_controller_fmu: Path,
-                                                        tmp_path: Path) -> None:
-    """fmpy simulate with logging off (its default): the refusal is one line, not silence."""
+                                                        tmp_path: Path, kind_code: int,
+                                                        kind: str) -> None:
+    """fmpy simulate with logging off (its default): the refusal of a kind of
+    PulseControllerPython.fmu only is one line naming it, not silence."""
     import test_fmu_hosts_metadata as metadata
 
+    assert KIND_CODES[kind_code - 1] == kind and kind not in NATIVE_KINDS
     done = metadata.fmpy_cli("simulate", str(pulse_controller_fmu), "--start-values",
-                             "kind_code", "3", "--stop-time", "0.05", "--output-file",
-                             str(tmp_path / "out.csv"))
+                             "kind_code", str(kind_code), "--stop-time", "0.05",
+                             "--output-file", str(tmp_path / "out.csv"))
     assert done.returncode != 0
     lines = [line for line in done.stderr.splitlines() if line.startswith("PulseController ")]
     assert len(lines) == 1, done.stderr
-    assert "parameter kind = 'exact': must be one of 'papwc', 'pid', 'pwc'" in lines[0]
+    assert f"parameter kind = '{kind}': must be one of 'papwc', 'pid', 'pwc'" in lines[0]
+    assert "are in PulseControllerPython.fmu" in lines[0]
     assert "initialization refused (fmi2Error)" in lines[0]
 
 
@@ -524,11 +577,38 @@ def test_the_master_steps_the_c_controller_only_for_its_kinds(pulse_controller_f
     for kind in ("pwc", "papwc", "pid"):
         assert isinstance(controller_slave(ControllerSettings(kind=kind), T, library),
                           NativeControllerSlave)
-    for kind in ("exact", "dual_loop"):
+    for kind in ("exact", "dual_loop", "hybrid"):
         assert isinstance(controller_slave(ControllerSettings(kind=kind), T, library),
                           ControllerSlave)
     assert isinstance(controller_slave(ControllerSettings(), T, None), ControllerSlave)
     assert fmu_controller_library(pulse_controller_fmu.with_name("missing.fmu")) is None
+
+
+@pytest.mark.parametrize(("kind", "fmu_name"), [("pid", "PulseController"),
+                                             ("hybrid", "PulseControllerPython")])
+def test_closed_loop_ssp_takes_the_controller_fmu_that_has_the_kind(
+        friction_plant_fmu: Path, pulse_controller_fmu: Path, tmp_path: Path, kind: str,
+        fmu_name: str) -> None:
+    """ClosedLoop.ssp of realism_1khz.toml's PID (native) and of the hybrid in its place
+    (kind_code 6, PulseControllerPython.fmu only): the controller component is the FMU
+    that has the kind, and only that one is in the archive."""
+    from papwc.fmubuild.ssp_writer import build_closed_loop_ssp
+
+    text = (PROJECT_DIR / "scenarios" / "realism_1khz.toml").read_text()
+    scenario = tmp_path / f"{kind}.toml"
+    scenario.write_text(text[:text.index("[cases]")].replace('kind = "pid"', f'kind = "{kind}"'))
+    ssp = build_closed_loop_ssp(tmp_path / "ssp", scenario, friction_plant_fmu,
+                                pulse_controller_fmu)
+    import xml.etree.ElementTree as ET
+
+    with zipfile.ZipFile(ssp) as archive:
+        ssd = ET.fromstring(archive.read("SystemStructure.ssd"))
+        fmus = sorted(n for n in archive.namelist() if n.endswith(".fmu"))
+    sources = {c.get("name"): c.get("source") for c in ssd.iter()
+               if c.tag.endswith("}Component")}
+    assert sources == {"plant": "resources/FrictionPlant.fmu",
+                       "controller": f"resources/{fmu_name}.fmu"}
+    assert fmus == sorted(["resources/FrictionPlant.fmu", f"resources/{fmu_name}.fmu"])
 
 
 # --- the library a drive links: the example of the docs -----------------------------------------

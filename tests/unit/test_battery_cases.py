@@ -130,4 +130,29 @@ def test_the_1_khz_twin_of_a_realism_battery_runs_its_pid_on_the_same_plants(nam
     pid = [t for t in at_100hz[0].data["controller"] if t["kind"] == "pid"]
     (fast,) = at_1khz[0].data["controller"]
     assert at_100hz[0].data["maneuver"]["T"] == 0.01 and at_1khz[0].data["maneuver"]["T"] == 1e-3
-    assert [{**t, "label": ""} for t in pid] == [{**fast, "label": ""}]
+    # the same PID; at 1 ms its in-position window is on, and on the Monte Carlo's 0.1 um
+    # encoder it is told the count (which only the window's decisions read)
+    told = {"x_resolution": at_1khz[0].data["plant"]["x_resolution"]} if (
+        "x_resolution" in fast) else {}
+    assert [{**t, **told, "label": ""} for t in pid] == [{**fast, "label": ""}]
+    assert name == "realism" or told == {"x_resolution": 1e-7}
+
+
+@pytest.mark.parametrize("name", ["realism_mc", "realism_mc_lugre"])
+def test_the_hybrid_and_fine_twins_run_the_monte_carlos_tables(name) -> None:
+    """The hybrid twin (at 1 ms) and the fine-encoder twin run the same tables: run for run
+    the same plants, but the fine twin's encoder count a tenth and its noise a tenth."""
+    base = plan_runs([load_battery(scenario_file(f"{name}.toml"))])
+    hybrid = plan_runs([load_battery(scenario_file(f"{name}_hybrid.toml"))])
+    fine = plan_runs([load_battery(scenario_file(f"{name}_fine.toml"))])
+    assert [r.run_id for r in hybrid] == [r.run_id for r in fine] == [r.run_id for r in base]
+    assert all(a.data["plant"] == b.data["plant"] for a, b in zip(base, hybrid, strict=True))
+    for a, b in zip(base, fine, strict=True):
+        scaled = {**a.data["plant"], "x_resolution": 1e-8,
+                  "noise_std": a.data["plant"]["noise_std"] / 10.0}
+        assert b.data["plant"] == pytest.approx(scaled, rel=1e-12, abs=1e-30)
+    (ctl,) = hybrid[0].data["controller"]
+    assert ctl["kind"] == "hybrid" and hybrid[0].data["maneuver"]["T"] == 1e-3
+    assert not [r.error for r in hybrid + fine if r.error]
+    exact = [t for t in fine[0].data["controller"] if t["kind"] == "exact"]
+    assert exact[0]["x_resolution"] == exact[0]["tolerance"] == 1e-8

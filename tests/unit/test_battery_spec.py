@@ -17,6 +17,10 @@ from papwc.battery.spec import (
     REQUIREMENT_IDS,
     REQUIREMENTS,
     SPEC_COLUMNS,
+    beside_markdown,
+    companion_base,
+    compare_markdown,
+    compare_rows,
     spec_rows,
     verdicts,
 )
@@ -41,11 +45,11 @@ ideal = { "plant.x_resolution" = 0.0 }
 
 
 def _iteration(k: int, e: float, outcome: str = "settled", reason: str = "within_tolerance",
-               settle: float = math.nan, farther: bool = False) -> dict:
+               settle: float = math.nan, farther: bool = False, span: float = math.nan) -> dict:
     return {"iteration": k, "final_error_m": e, "pulses": 3, "settle_time_s": settle,
             "limit_cycle": False, "cycle_p2p_m": 0.0, "b_hat": 1.0, "f_c_hat": 90.0,
             "outcome": outcome, "outcome_reason": reason, "pulse_ratio": 0.5,
-            "ends_farther": farther, "error": ""}
+            "ends_farther": farther, "settled_span_m": span, "error": ""}
 
 
 def _pulse(k: int, e: float, d: float, ratio: float, samples: int = 1,
@@ -57,8 +61,10 @@ def _pulse(k: int, e: float, d: float, ratio: float, samples: int = 1,
 
 
 #: Last iterations of the four runs of a case: (final error, outcome, reason, settle time).
-LAST = [(5e-8, "settled", "within_tolerance", 0.2), (9e-8, "settled", "within_tolerance", 0.5),
-        (-8e-7, "stopped", "time_ended", math.nan), (1e-4, "settled", "within_tolerance", 1.0)]
+LAST = [(5e-8, "settled", "within_tolerance", 0.2, 0.0),
+        (9e-8, "settled", "within_tolerance", 0.5, 2e-7),  # moved two counts after: hunting
+        (-8e-7, "stopped", "time_ended", math.nan, math.nan),
+        (1e-4, "settled", "within_tolerance", 1.0, 5e-8)]
 #: Pulses of the first run, one of each kind the spec tells apart (the band top and
 #: u_break at 140 N).
 PULSES = [
@@ -81,8 +87,9 @@ def crafted():
     records = {}
     for spec in runs:
         i = ["s0", "s1", "s2", "s3"].index(spec.run_id.split("-")[1])
-        e, outcome, reason, settle = LAST[i]
-        its = [_iteration(1, 1e-3, farther=(i == 3)), _iteration(2, e, outcome, reason, settle)]
+        e, outcome, reason, settle, span = LAST[i]
+        its = [_iteration(1, 1e-3, farther=(i == 3)),
+               _iteration(2, e, outcome, reason, settle, span=span)]
         ctrl = {"label": "exact", "kind": "exact", "tolerance": 1e-7, "error": "",
                 "iterations": its, "pulses": PULSES if i == 0 else []}
         records[(spec.battery, spec.run_id)] = {
@@ -121,8 +128,9 @@ def test_spec_counts_each_figure(crafted) -> None:
         "false_settled": 1,  # settled at 1e-4 m with tolerance 1e-7 m
         "false_settled_any": 5,  # and every first iteration, settled at 1e-3 m
         "time_ended": 1,
+        "settled_late": 3, "hunting": 1,  # 2e-7 m after settled, more than a count
         "R1": "MISSED", "R2": "", "R3": "MISSED", "R4h": "MISSED", "R4s": "MISSED",
-        "R5": "MISSED", "R6": "MISSED", "P": "",
+        "R5": "MISSED", "R6": "MISSED", "P": "", "H": "",
     }
     # the ideal encoder has no count; the failed run counts as a run, not a success
     assert ideal["runs"] == 4 and ideal["errors"] == 1 and ideal["within_1um"] == 3
@@ -131,6 +139,8 @@ def test_spec_counts_each_figure(crafted) -> None:
     assert ideal["settle_median_s"] == 0.5 and ideal["settle_p95_s"] == math.inf
     assert ideal["maneuvers"] == 6 and ideal["farther"] == 0 and ideal["time_ended"] == 1
     assert ideal["false_settled_any"] == 3
+    # on the ideal encoder "a count" is 1e-7 m; the failed run is not counted
+    assert ideal["settled_late"] == 2 and ideal["hunting"] == 1
     assert set(counted) == set(SPEC_COLUMNS)
 
 
@@ -141,7 +151,8 @@ def _row(kind: str = "exact", rigid: bool = True, duration: float = 2.0, **figur
            "within_1e7": 0, "within_20um": 20, "farther": 0, "false_settled_any": 0,
            "far_beyond": 0, "planned_beyond": 0, "mid_pulses": 200, "mid_beyond": 0,
            "mid_beyond_3x": 0, "pulses_near": 100, "runaway_near": 0, "near_over_20um": 0,
-           "settle_median_s": 0.5, "settle_p95_s": 1.5}
+           "settle_median_s": 0.5, "settle_p95_s": 1.5, "pulses_far": 300, "runaway_far": 0,
+           "settled_late": 20, "hunting": 0}
     row.update(figures)
     return row
 
@@ -175,6 +186,13 @@ def _row(kind: str = "exact", rigid: bool = True, duration: float = 2.0, **figur
     ({"kind": "papwc", "within_20um": 19}, "P", "met"),
     ({"kind": "papwc", "within_20um": 18}, "P", "MISSED"),
     ({"kind": "papwc", "within_20um": 18, "rigid": False}, "P", ""),
+    ({"kind": "hybrid"}, "H", "met"),
+    ({"kind": "hybrid", "within_1um": 19}, "H", "MISSED"),  # 95 % < 99 %
+    ({"kind": "hybrid", "within_count": 17}, "H", "MISSED"),  # 85 % < 90 %
+    ({"kind": "hybrid", "within_count": 17, "rigid": False}, "H", "met"),  # statistical
+    ({"kind": "hybrid", "runaway_far": 1, "rigid": False}, "H", "MISSED"),  # hard
+    ({"kind": "hybrid", "hunting": 1, "rigid": False}, "H", "MISSED"),  # hard
+    ({"kind": "pid", "hunting": 1}, "H", ""),  # the hybrid's requirement
 ])
 def test_each_requirement_is_judged_where_its_target_applies(figures, requirement, verdict):
     kind = figures.pop("kind", "exact")
@@ -184,7 +202,7 @@ def test_each_requirement_is_judged_where_its_target_applies(figures, requiremen
 
 
 def test_the_targets_are_data_with_one_verdict_column_each() -> None:
-    assert REQUIREMENT_IDS == ("R1", "R2", "R3", "R4h", "R4s", "R5", "R6", "P")
+    assert REQUIREMENT_IDS == ("R1", "R2", "R3", "R4h", "R4s", "R5", "R6", "P", "H")
     assert set(REQUIREMENT_IDS) <= set(SPEC_COLUMNS)
     for target in REQUIREMENTS:
         assert target.figure in SPEC_COLUMNS and (not target.of or target.of in SPEC_COLUMNS)
@@ -211,8 +229,8 @@ def test_pulses_csv_and_spec_csv_are_written_with_the_runs_identification(crafte
         ("counted", "3", "1", "MISSED"), ("ideal", "3", "1", "MISSED")]
     text = (tmp_path / "summary.md").read_text()
     assert ("| counted | exact | 4 | 3 of 4 (75.0%) | 2 of 4 (50.0%) | – | 3 of 4 (75.0%) | "
-            "0.750 | inf | 1 of 8 | 5 | 1 | R1 MISSED, R3 MISSED, R4h MISSED, R4s MISSED, "
-            "R5 MISSED, R6 MISSED |") in text
+            "0.750 | inf | 1 of 8 | 5 | 1 | 1 of 3 (33.3%) | R1 MISSED, R3 MISSED, R4h MISSED, "
+            "R4s MISSED, R5 MISSED, R6 MISSED |") in text
     assert ("| counted | exact | 1 of 2 (50.0%) | 1 of 2 (50.0%) | 2 of 4 (50.0%) | 1 | "
             "1 of 2 (50.0%) | 1 | 0.0001 |") in text
     assert "| ideal | exact | 4 | 3 of 4 (75.0%) | – | 2 of 4 (50.0%) |" in text
@@ -239,3 +257,36 @@ def test_a_seed_offset_is_written_beside_the_figures(crafted, tmp_path) -> None:
     text = (tmp_path / "summary.md").read_text()
     assert "every seed offset by 7 (--seed-offset)" in text
     assert "### Spec (seed offset 7)" in text
+
+
+def _spec_row(battery: str, case: str, controller: str, kind: str, **figures) -> dict:
+    row = dict.fromkeys(SPEC_COLUMNS, 0)
+    row.update(_row(kind=kind), battery=battery, case=case, controller=controller, maneuvers=60,
+               settle_median_s=0.5, settle_p95_s=1.5, **figures)
+    row.update(verdicts(row))
+    return row
+
+
+def test_companion_batteries_sit_beside_their_base_battery_case_by_case() -> None:
+    """realism_mc_1khz and realism_mc_hybrid run realism_mc's tables: summary.md's table of
+    every controller and papwc spec's comparison show their rows beside realism_mc's, case by
+    case; a battery without a companion gets no such table."""
+    assert companion_base("realism_mc_1khz") == "realism_mc"
+    assert companion_base("realism_mc_lugre_hybrid") == "realism_mc_lugre"
+    assert companion_base("realism_mc_fine") == "realism_mc_fine"  # another tier, not a twin
+    spec = [_spec_row("mc", "rigid", "exact", "exact"), _spec_row("mc", "flexible", "exact",
+                                                                    "exact"),
+            _spec_row("mc_1khz", "rigid", "pid_1khz", "pid"),
+            _spec_row("mc_1khz", "flexible", "pid_1khz", "pid"),
+            _spec_row("mc_hybrid", "rigid", "hybrid", "hybrid", hunting=1, within_count=17)]
+    lines = beside_markdown(spec)
+    rows = [line for line in lines if line.startswith("| rigid") or line.startswith(
+        "| flexible")]
+    assert [r.split(" | ")[1:3] for r in rows] == [
+        ["exact", "mc"], ["pid_1khz", "mc_1khz"], ["hybrid", "mc_hybrid"],
+        ["exact", "mc"], ["pid_1khz", "mc_1khz"]]
+    assert "### mc" in lines and "H MISSED" in rows[2] and "1 of 20 (5.0%)" in rows[2]
+    assert beside_markdown([_spec_row("mc", "rigid", "exact", "exact")]) == []
+    text = compare_markdown(compare_rows(spec, spec), "a", "b")
+    assert "## mc\n" in text and "## mc_1khz" not in text
+    assert "| rigid | pid_1khz | mc_1khz | 20/20 (100%) → 20/20 (100%) |" in text

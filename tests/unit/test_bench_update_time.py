@@ -17,7 +17,7 @@ def test_every_registered_kind_is_measured_at_its_own_rate() -> None:
     scenarios = selected_runs(FILES, quick=True)
     kinds = {(s.kind, sc.maneuver.T) for sc in scenarios for s in sc.controllers}
     assert {kind for kind, _ in kinds} == set(CONTROLLER_KINDS)
-    assert ("pid", 0.001) in kinds and ("pid", 0.01) in kinds
+    assert ("pid", 0.001) in kinds and ("pid", 0.01) in kinds and ("hybrid", 0.001) in kinds
     # quick: one target, seed and draw per case; realism.toml has 8 cases
     assert sum(1 for sc in scenarios if sc.name == "realism") == 8
     full = selected_runs(["realism.toml"])

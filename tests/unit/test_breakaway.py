@@ -129,12 +129,12 @@ def test_two_creeps_make_the_breakaway_smooth_and_the_pulses_plan_on_its_evidenc
     move at most trust*|e|."""
     ctl = _controller()
     ctl.learn(1, 150.0, 5e-6)
-    assert not ctl.breakaway.smooth
+    assert not ctl.evidence.breakaway.smooth
     ctl.learn(1, 160.0, 8e-6)
-    assert ctl.breakaway.smooth
+    assert ctl.evidence.breakaway.smooth
     e = 3e-6
     n, f_p = ctl.plan_pulse(e)
-    assert n == 1 and f_p > ctl.breakaway.lowest() > 0.0
+    assert n == 1 and f_p > ctl.evidence.breakaway.lowest() > 0.0
     assert ctl.predict(n, f_p) <= ctl.trust() * e * (1 + 1e-12)
 
 
@@ -149,11 +149,11 @@ def test_a_refusal_far_from_the_target_before_any_visible_move_switches_to_the_e
     for f in (127.25, 139.97, 153.97):
         ctl.seq.pred = ctl.predict(1, f)
         ctl.learn(1, f, 0.0)  # not seen to move
-    assert not ctl.breakaway.smooth and not ctl.moved
-    n, f_eq3 = ctl._plan_eq3(4.98e-5)
+    assert not ctl.evidence.breakaway.smooth and not ctl.evidence.moved
+    n, f_eq3 = ctl.fitted.plan(4.98e-5)  # Eq. (3)'s plan, the evidence not asked
     assert ctl.seq.may_end_farther(4.98e-5, f_eq3, ctl.predict(n, f_eq3))  # would stop
     n, f_p = ctl.plan_pulse(4.98e-5)
-    assert ctl.breakaway.smooth and n == 1 and f_p > 153.97
+    assert ctl.evidence.breakaway.smooth and n == 1 and f_p > 153.97
     assert not ctl.seq.may_end_farther(4.98e-5, f_p, ctl.predict(n, f_p))
 
 
@@ -164,7 +164,7 @@ def test_a_pulse_that_crept_raises_the_lowest_breakaway_and_the_maneuver_goes_on
     n, f_p = ctl.plan_pulse(3e-6)
     ctl.seq.pred = ctl.predict(n, f_p)
     ctl.learn(n, f_p, 0.0)  # it did not move: the breakaway lies above
-    assert ctl.breakaway.f_lb == abs(f_p) and ctl.f_low == abs(f_p)
+    assert ctl.evidence.breakaway.f_lb == abs(f_p) and ctl.f_low == abs(f_p)
     n2, f2 = ctl.plan_pulse(3e-6)
     assert n2 == 1 and abs(f2) > abs(f_p)
 
@@ -188,7 +188,7 @@ def test_no_pulse_history_makes_the_exact_controller_plan_beyond_its_trust_regio
     left out: Eq. (3)'s fit takes them as moves and its probes then plan past the trust
     region, 2.6e-7 m for 2e-7 m after two "moves" of 1e-115 m.)"""
     ctl = _controller()
-    ctl.breakaway.smooth = smooth
+    ctl.evidence.breakaway.smooth = smooth
     for f, d in pulses:
         ctl.seq.pred = ctl.predict(1, f)
         ctl.learn(1, f, d)

@@ -7,8 +7,11 @@ import math
 
 import pytest
 from harness import hard_runaways
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from papwc.controllers import CONTROLLER_KINDS, Outcome, Reason, make_controller
+from papwc.controllers.drive_check import DriveCheck
 from papwc.controllers.dual_loop import (
     F_MODE_MAX_T,
     PROBE_SHARE,
@@ -19,6 +22,7 @@ from papwc.controllers.dual_loop import (
 from papwc.controllers.mode_id import ModeIdentifier, mode_of
 from papwc.controllers.settings import ControllerSettings
 from papwc.master import Maneuver, PhysicsSlave, run_controller
+from papwc.master.closed_loop import ControllerSlave, run_closed_loop
 from papwc.model.controller_settings import settings_problems
 
 T = 0.01
@@ -133,12 +137,6 @@ def test_on_a_flexible_drive_it_ends_within_1_um_and_never_farther(params, setti
         assert abs(x_ref - last.column("x")[-1]) <= 1e-6, (x_ref, settings)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "R4h and R5 under the table's bound (issue 43): on each of these drives 14 to 17 of its "
-    "56 to 62 pulses over the three targets are one-sample pulses above the 114 N that breaks "
-    "this drive's table away from rest, beyond their bound at 1 to 40 um of error (up to 9 "
-    "times), or move 21 to 67 um at abs(e) < 1 um (the bound of one sample at the "
-    "controller's own lowest height called them within)"))
 @pytest.mark.parametrize(("params", "settings"), TOLD_DRIVES)
 def test_on_a_flexible_drive_no_pulse_a_hard_requirement_forbids(params, settings) -> None:
     """No pulse beyond its bound at abs(e) >= 50 um or planned and beyond it at abs(e) >=
@@ -160,8 +158,9 @@ def test_above_a_quarter_of_the_sample_rate_the_mode_is_refused() -> None:
     with pytest.raises(ValueError, match=r"f_mode = 40.0 Hz: .* \[0, 25\] Hz"):
         make_controller(s, T)
     assert F_MODE_MAX_T == 0.25
-    assert make_controller(dual(f_mode=25.0), T).motor is not None
-    assert make_controller(dual(f_mode=0.0), T).motor is None
+    # (the motor loop is built once the drive check has seen the mode)
+    assert make_controller(dual(f_mode=25.0), T).check.f_told == 25.0
+    assert make_controller(dual(f_mode=0.0), T).check is None
     # every kind is refused the same (a table-only controller cannot wait such a mode out)
     assert settings_problems({**dataclasses.replace(s, kind="exact").to_mapping(
         with_none=True), "T": T}) == problems
@@ -295,7 +294,7 @@ def test_the_probe_identifies_the_mode_before_the_first_pulse(params: dict,
     assert ctl.motor.omega == pytest.approx(2.0 * math.pi * ctl.mode_id.f_mode)
     assert forces[0] == pytest.approx(PROBE_SHARE * 80.0) and set(forces[1:-1]) == {0.0}
     assert ctl.seq.pulses == 0 and slave.x == 0.0
-    assert forces[-1] == ctl.motor.u_prev  # the loop's force: it relaxes the probe's ringing
+    assert forces[-1] == ctl.u_last != 0.0  # the loop's force: it relaxes the probe's ringing
     step(slave, forces[-1], k)
     for j in range(k + 1, k + 30):  # and only then the maneuver's first pulse
         ctl.x_d_meas = slave.plant.x_d_meas()
@@ -342,3 +341,161 @@ def test_identification_takes_only_force_free_readings_of_a_stuck_table() -> Non
     assert ident.recent == [1e-6]
     ident.observe(1e-6, 1e-6, 0.0, 0.0)  # the table moved: a new run where it is
     assert ident.recent == [1e-6] and ident.x_run == 1e-6 and ident.triples == 1
+
+
+# -- the drive check: the model told against the motor encoder's answer to the probe ----------
+def _ringing(f: float, m_d: float, c_t: float, probe: float, delay: int, n: int = 60,
+             x_d_follows: bool = True) -> list[float]:
+    """Deflections read at samples 0..n-1 after one sample of ``probe`` N sent at sample 0
+    that acts ``delay`` samples later, on a motor of mass m_d (kg) ringing at f (Hz) with
+    damping c_t (N.s/m) against a stuck table (the exact sampled model)."""
+    drive = MotorLoop(2.0 * math.pi * f, m_d, c_t, T)
+    (p11, p12, p21, p22), (g1, g2) = drive.phi, drive.gamma
+    delta = rate = 0.0
+    out = []
+    for k in range(n):
+        out.append(delta if x_d_follows else 0.0)
+        u = probe if k == delay else 0.0
+        delta, rate = p11 * delta + p12 * rate + g1 * u, p21 * delta + p22 * rate + g2 * u
+    return out
+
+
+def _check(told: float, m_d: float, readings: list[float]) -> DriveCheck:
+    check = DriveCheck(T, 0.0, told, m_d, 32.0, int(round(PROBE_WAIT_S / T)))
+    for delta in readings:
+        if check.observe(delta, 0.0) != DriveCheck.PENDING:
+            break
+    return check
+
+
+@pytest.mark.parametrize("delay", [0, 1])
+def test_the_drive_check_accepts_the_mode_and_mass_the_ringing_shows(delay: int) -> None:
+    """On the 20 Hz drive (50 kg, 251.3 N.s/m): the delay of the force, the mode to 1e-6 and
+    the ratio of the amplitude to the model's (the mass told over the true one) to 1e-6; a
+    mode told 9 % off is accepted, the loop is built on the mode seen."""
+    for told in (20.0, 18.3, 21.8):
+        check = _check(told, 50.0, _ringing(20.0, 50.0, 251.3, 32.0, delay))
+        assert check.verdict == DriveCheck.ACCEPTED and check.delay == delay
+        assert check.f_mode == pytest.approx(20.0, rel=1e-6)
+        assert check.mass_ratio == pytest.approx(1.0, rel=1e-6)
+        assert check.k <= 20 + delay
+
+
+@pytest.mark.parametrize(("told", "m_d", "why"), [
+    (25.0, 50.0, "mode 25 % high"), (24.0, 50.0, "mode 20 % high"),
+    (16.0, 50.0, "mode 20 % low"), (15.0, 50.0, "mode 25 % low"),
+    (17.8, 50.0, "mode 11 % low"), (22.2, 50.0, "mode 11 % high"),
+    (20.0, 75.0, "motor mass 1.5 times"), (20.0, 35.0, "motor mass 0.7 times"),
+])
+def test_the_drive_check_contradicts_a_model_the_ringing_does_not_show(told, m_d, why) -> None:
+    check = _check(told, m_d, _ringing(20.0, 50.0, 251.3, 32.0, 0))
+    assert check.verdict == DriveCheck.CONTRADICTED, why
+    assert check.f_mode == pytest.approx(20.0, rel=1e-6)
+
+
+def test_the_drive_check_without_ringing_or_a_following_encoder() -> None:
+    """A motor encoder that does not move after the probe (not connected): not following
+    after MAX_DELAY + 1 readings; a deflection that decays without ringing (a real pole):
+    no mode within the wait, the mode told not seen."""
+    wait = int(round(PROBE_WAIT_S / T))
+    check = _check(20.0, 50.0, _ringing(20.0, 50.0, 251.3, 32.0, 0, x_d_follows=False))
+    assert check.verdict == DriveCheck.NOT_FOLLOWING and check.k == 3
+    check = _check(20.0, 50.0, [0.0] + [3e-5 * 0.8**k for k in range(wait + 5)])
+    assert check.verdict == DriveCheck.NOT_SEEN and check.k == wait + 2
+    assert check.f_mode == 0.0
+
+
+@pytest.mark.parametrize("settings", [dual(f_mode=15.0), dual(f_mode=16.0), dual(f_mode=24.0),
+                                      dual(f_mode=25.0), dual(m_d_est=100.0)])
+def test_a_drive_model_the_ringing_contradicts_is_refused_at_the_first_evidence(settings):
+    """Told 15, 16, 24 or 25 Hz (or a motor of twice its mass) on the 20 Hz drive: the probe's
+    ringing contradicts it, every maneuver stops ``model_rejected`` before any pulse, the
+    output is 0 after the probe and the table never moves (before the check, told 24 and
+    25 Hz left it 0.09 m and 0.22 m past a 10 mm target, rc 0, status ok)."""
+    for x_ref, result in _runs(DRIVE_20HZ, settings):
+        for tr in result.traces:
+            assert tr.column("outcome")[-1] == Outcome.STOPPED
+            assert tr.column("outcome_reason")[-1] == Reason.MODEL_REJECTED
+            assert set(tr.column("x")) == {0.0} and max(tr.column("pulses")) == 0
+            u = [f for f in tr.column("u") if f == f]
+            assert set(u[1:]) <= {0.0} and abs(u[0]) <= PROBE_SHARE * 80.0, x_ref
+
+
+@pytest.mark.parametrize(("params", "settings"), [(DRIVE_20HZ, dual()), (DRIVE_10HZ,
+                                                                         dual(f_mode=10.0))])
+def test_under_delayed_timing_the_delay_is_part_of_its_model(params, settings) -> None:
+    """``timing = "delayed"`` (the force one sample late, as libcosim, ecos and papwc cosim
+    step): the probe finds the delay, the motor loop acts on the state the force already
+    sent leaves; no maneuver farther, and on the 20 Hz drive no pulse a hard requirement
+    forbids and each target within 1 um in the last iteration (before: stopped after one
+    pulse, 9.76 mm short, naming invalid_measurement). The 10 Hz drive's pulses are not
+    held to the bound yet, with either timing (see docs/_incoming/43-dual-loop.md)."""
+    for x_ref in (1e-2, 1e-3, 5e-5):
+        maneuver = Maneuver(x_ref=x_ref, T=T, duration=2.0, iterations=3, timing="delayed")
+        controller = make_controller(settings, T)
+        result = run_closed_loop(_slave(params), ControllerSlave(controller), maneuver,
+                                 settings)
+        assert not result.error and controller.delay == 1
+        for tr in result.traces:
+            assert abs(x_ref - tr.column("x")[-1]) <= x_ref
+            assert tr.column("outcome_reason")[-1] != Reason.INVALID_MEASUREMENT
+        if params is DRIVE_20HZ:
+            assert abs(x_ref - result.traces[-1].column("x")[-1]) <= 1e-6, x_ref
+            assert not hard_runaways(result.traces, params, T)
+
+
+def test_a_loop_that_feeds_the_drive_stops_it_for_good() -> None:
+    """A motor loop that feeds the drive instead of relaxing it (the check passed, then the
+    drive changed: here a loop with four times the gain): model_rejected at the sample
+    its ringing has doubled, 0 after it, and every later maneuver refused."""
+    slave = _slave(DRIVE_20HZ)
+    slave.initialize()
+    ctl = make_controller(dual(), T)
+    k = 0
+    while ctl.motor is None:
+        ctl.x_d_meas = slave.plant.x_d_meas()
+        step(slave, ctl.update(k * T, slave.plant.x_meas(), 1e-3), k)
+        k += 1
+    ctl.motor.gain = tuple(4.0 * g for g in ctl.motor.gain)
+    forces = []
+    for j in range(k, k + 60):
+        ctl.x_d_meas = slave.plant.x_d_meas()
+        forces.append(ctl.update(j * T, slave.plant.x_meas(), 1e-3))
+        step(slave, forces[-1], j)
+        if ctl.outcome == Outcome.STOPPED:
+            break
+    assert ctl.outcome_reason == Reason.MODEL_REJECTED and ctl.refused
+    assert ctl.update((j + 1) * T, slave.plant.x_meas(), 1e-3) == 0.0
+    ctl.reset()
+    assert ctl.update(0.0, slave.plant.x_meas(), 1e-3) == 0.0
+    assert ctl.outcome == Outcome.STOPPED and ctl.outcome_reason == Reason.MODEL_REJECTED
+
+
+#: Readings inside sane bounds: the table within 20 mm of its start, the spring's deflection
+#: within 1 mm (800 N on the 20 Hz drive), both on or off the 0.1 um grid.
+_READINGS = st.lists(st.tuples(st.floats(-0.02, 0.02, allow_nan=False),
+                               st.floats(-1e-3, 1e-3, allow_nan=False)),
+                     min_size=1, max_size=60)
+
+
+@settings(max_examples=60, deadline=None)
+@given(start=st.integers(0, 150), readings=_READINGS, delayed=st.booleans())
+def test_no_measurement_sequence_makes_it_output_nan_or_beyond_f_p_max(start, readings,
+                                                                        delayed) -> None:
+    """The controller runs on the 20 Hz drive for ``start`` samples (the check, the loop,
+    pulses), then takes any readings drawn inside sane bounds: every force is finite and
+    within f_p_max."""
+    slave = _slave(DRIVE_20HZ)
+    slave.initialize()
+    ctl = make_controller(dual(), T)
+    sent = 0.0
+    for k in range(start):
+        ctl.x_d_meas = slave.plant.x_d_meas()
+        u = ctl.update(k * T, slave.plant.x_meas(), 1e-3)
+        assert math.isfinite(u) and abs(u) <= 300.0
+        step(slave, sent if delayed else u, k)
+        sent = u
+    for j, (x, delta) in enumerate(readings, start):
+        ctl.x_d_meas = x + delta
+        u = ctl.update(j * T, x, 1e-3)
+        assert math.isfinite(u) and abs(u) <= 300.0, (j, x, delta, u)

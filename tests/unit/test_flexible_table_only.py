@@ -185,7 +185,7 @@ def test_told_its_mode_the_exact_controller_plans_on_the_evidence_of_the_breakaw
     within 20 um in the last iteration (about 5 um; 96 um when Eq. (3) planned them), none
     ending farther. Not told, a mode seen ringing keeps Eq. (3)'s plans."""
     controller, result = _run(TABLE_20HZ, "exact", 1e-3, f_mode=20.0)
-    assert controller.breakaway.smooth and controller.on_evidence()
+    assert controller.evidence.breakaway.smooth and controller.on_evidence()
     assert abs(1e-3 - result.traces[-1].column("x")[-1]) <= 20e-6
     for trace in result.traces:
         x = trace.column("x")

@@ -55,15 +55,15 @@ def refused(data: dict, *parts: str) -> str:
 @pytest.mark.parametrize("kind", [["papwc"], {"a": 1}, 3, None])
 def test_kind_given_as_array_or_table_is_a_named_error(kind) -> None:
     refused(scenario(controller=[{"kind": kind}]), "[[controller]] #1 field 'kind'",
-            "must be one of 'dual_loop', 'exact', 'papwc', 'pid', 'pwc'")
+            "must be one of 'dual_loop', 'exact', 'hybrid', 'papwc', 'pid', 'pwc'")
 
 
 @pytest.mark.parametrize("field, value, allowed", [
-    ("history", -1, "a whole number 1 <= history <= 1000"),
+    ("history", -1, "a whole number 1 <= history <= 52"),
     ("c_est", "x", "must be a number"),
     ("f_s_tol", 0, "0 < f_s_tol <= 1"),
     ("max_pulses", 0.5, "a whole number 1 <= max_pulses <= 1000000"),
-    ("history", 10**6, "<= 1000"),
+    ("history", 10**6, "<= 52"),
 ])
 def test_exact_controller_settings_are_validated(field, value, allowed) -> None:
     refused(scenario(controller=[{"kind": "exact", field: value}]),

@@ -114,17 +114,25 @@ class Pair:
     def update(self, x_meas: float, x_ref: float) -> float:
         """One sample of both; the forces and every output equal, bit for bit."""
         t = self.k * self.T
+        c = self.c
+        held, h_n, outcome = c.law.holding, c.law.h_n, c.seq.outcome
         u_py = self.py.update(t, x_meas, x_ref)
         u_c = self.library.api.sample(ctypes.addressof(self.buffer), t, x_meas, x_ref,
                                       ctypes.byref(self.y))
         self.k += 1
         assert bits(u_c) == bits(u_py), (self.k, x_meas, x_ref)
         assert self.outputs() == {n: bits(v) for n, v in self.py.outputs().items()}, self.k
-        c = self.c
         self.seen.update({("mode", c.seq.mode), ("outcome", c.seq.outcome),
                           ("reason", c.seq.outcome_reason), ("noise", c.rest.sigma2 > 0.0),
                           ("idle", c.seq.idle_samples > 0), ("ringing", c.trust.ring),
-                          ("creep", c.law.creeps[2] > 0.0), ("released", c.seq.released)})
+                          ("creep", c.law.creeps[2] > 0.0), ("released", c.seq.released),
+                          # the PID's in-position window: coasting into it, the force held,
+                          # the hold left (the PID acts again), the table crept under it
+                          # (the average starts anew), a settled outcome taken back
+                          ("coasting", c.law.coasting), ("holding", c.law.holding),
+                          ("left", bool(held and not c.law.holding and not c.seq.stopped)),
+                          ("crept", bool(held and h_n >= 31 and c.law.h_n == 16)),
+                          ("unsettled", outcome == 1 and c.seq.outcome == 0)})
         return u_py
 
     def outputs(self) -> dict[str, str]:
@@ -194,6 +202,10 @@ def controller_settings(draw: st.DrawFn, kind: str, T: float) -> ControllerSetti
         "v_max": draw(st.floats(0.005, 0.5)),
         "hunt_max": draw(st.integers(1, 8)),
         "m_d_est": draw(st.floats(1.0, 200.0)),
+        "x_resolution": draw(st.sampled_from((0.0, 1e-7, 1e-6))),
+        "in_position": some(draw, st.booleans()),
+        "in_position_band": some(draw, st.one_of(st.sampled_from((0.0, 1e-7, 1e-6, 2e-5)),
+                                                 st.floats(0.0, 1e-3))),
     }
     s = ControllerSettings.from_mapping(values)
     assert settings_problems({**s.to_mapping(with_none=True), "T": T}) == []
@@ -277,6 +289,29 @@ def replay(pair: Pair, inputs: list[tuple[float, float, bool]]) -> list[tuple[st
     return out
 
 
+def run_with_a_copy(library: NativeControllerLibrary, s: ControllerSettings, T: float,
+                    plant: NativePlant, x_ref: float, script: list[tuple[str, float]],
+                    at: int) -> set[tuple[str, Any]]:
+    """Close the loop over ``script`` with both controllers of ``s``; the state saved after
+    ``at`` samples, restored into new controllers (the Python one by ``set_state``, the C one
+    from its bytes), gives the same tail as the run and as new controllers given every input.
+    What the run went through (:attr:`Pair.seen`, and whether the copy was made in the PID's
+    hold)."""
+    pair = Pair(library, s, T)
+    pair.same_state()
+    head = run_script(pair, plant, x_ref, script[:at])
+    saved_py, saved_c = pair.py.state(), pair.copy()
+    tail_inputs = run_script(pair, plant, head[-1][1] if head else x_ref, script[at:])
+    tail = replay(Pair(library, s, T), head + tail_inputs)[at:]
+    python = make_controller(s, T)
+    python.set_state(saved_py)
+    restored = Pair(library, s, T, buffer=saved_c, python=python)
+    assert library.state_problem(saved_c) is None
+    restored.same_state()
+    assert replay(restored, tail_inputs) == tail
+    return pair.seen | {("saved holding", restored.c.law.holding)}
+
+
 #: What the drawn runs of each kind go through at least (the comparison reaches every mode;
 #: the generation of examples is not the same on every machine, so only what dozens of them
 #: reach). What the realism runs and the named situations below reach, deterministically:
@@ -302,25 +337,49 @@ def test_random_settings_and_readings_are_the_python_controllers_bit_for_bit(
     def check(data: st.DataObject, T: float, params: dict[str, float],
               script: list[tuple[str, float]], x_ref: float, cut: float) -> None:
         s = data.draw(controller_settings(kind, T))
-        pair = Pair(library, s, T)
-        pair.same_state()
-        plant = NativePlant(plant_lib, params)
-        at = int(cut * len(script))
-        head = run_script(pair, plant, x_ref, script[:at])
-        saved_py, saved_c = pair.py.state(), pair.copy()
-        tail_inputs = run_script(pair, plant, head[-1][1] if head else x_ref, script[at:])
-        tail = replay(Pair(library, s, T), head + tail_inputs)[at:]
-        # the state saved in the middle, restored into new controllers: the same tail
-        python = make_controller(s, T)
-        python.set_state(saved_py)
-        restored = Pair(library, s, T, buffer=saved_c, python=python)
-        assert library.state_problem(saved_c) is None
-        restored.same_state()
-        assert replay(restored, tail_inputs) == tail
-        seen.update(pair.seen)
+        seen.update(run_with_a_copy(library, s, T, NativePlant(plant_lib, params), x_ref,
+                                    script, int(cut * len(script))))
 
     check()
     assert COVERAGE[kind] <= seen, sorted(COVERAGE[kind] - seen)
+
+
+@st.composite
+def sparse_scripts(draw: st.DrawFn) -> list[tuple[str, float]]:
+    """Longer runs of the closed loop (800 to 2500 samples) with at most three other events."""
+    script: list[tuple[str, float]] = [("loop", 0.0)] * draw(st.integers(800, 2500))
+    for at, event, value in draw(st.lists(st.tuples(
+            st.integers(0, len(script) - 1), st.sampled_from(EVENTS), st.floats(-1.0, 1.0)),
+            max_size=3)):
+        script[at] = (event, value)
+    return script
+
+
+#: What the drawn runs of the PID at T <= 1 ms go through at least: its in-position window
+#: (on by default there) coasted into and held (also when the state is copied), a settled
+#: outcome (the hold left, the table crept, hunting: the named situations below).
+WINDOW_COVERAGE = {("coasting", 1), ("holding", 1), ("outcome", 1), ("saved holding", 1)}
+
+
+def test_random_pids_at_1khz_are_the_python_pids_bit_for_bit(
+        library: NativeControllerLibrary, plant_lib: NativeLibrary) -> None:
+    """The PID at T = 1 ms and 0.5 ms (its in-position window drawn on, off or at its
+    default, on), random settings and plants, runs long enough to reach the window; the
+    state copied in the middle continues alike (as the test above)."""
+    seen: set[tuple[str, Any]] = set()
+
+    @settings(SETTINGS, max_examples=30)
+    @given(data=st.data(), T=st.sampled_from((0.001, 0.0005)), params=plant_params(),
+           script=sparse_scripts(), x_ref=st.sampled_from((1e-3, 2e-4, -5e-5)),
+           cut=st.floats(0.0, 1.0))
+    def check(data: st.DataObject, T: float, params: dict[str, float],
+              script: list[tuple[str, float]], x_ref: float, cut: float) -> None:
+        s = data.draw(controller_settings("pid", T))
+        seen.update(run_with_a_copy(library, s, T, NativePlant(plant_lib, params), x_ref,
+                                    script, int(cut * len(script))))
+
+    check()
+    assert WINDOW_COVERAGE <= seen, sorted(WINDOW_COVERAGE - seen)
 
 
 # --- scenarios/realism.toml through the closed loop ----------------------------------------------
@@ -401,6 +460,77 @@ def test_named_situations_are_the_python_controllers_bit_for_bit(
     assert reached <= pair.seen
 
 
+#: The plant of the named situations: Table 1.
+TABLE_1 = {"m": 150.0, "f_c": 100.0, "f_s": 130.0, "c": 700.0}
+#: A noisy encoder of 0.1 um counts (noise 0.2 um or 1 um rms).
+NOISY = {"noise_std": 2e-7, "x_resolution": 1e-7, "seed": 3}
+VERY_NOISY = {"noise_std": 1e-6, "x_resolution": 1e-7, "seed": 3}
+
+
+@pytest.mark.parametrize(("values", "params", "x_ref", "T", "reached"), [
+    ({"tolerance": 1e-6}, NOISY, 1e-3, 0.001,
+     {("coasting", 1), ("holding", 1), ("crept", True), ("reason", 1), ("noise", True)}),
+    ({"tolerance": 1e-7, "hunt_max": 1}, VERY_NOISY, 5e-5, 0.001,
+     {("holding", 1), ("left", True), ("reason", 8)}),
+    ({"tolerance": 2e-5, "in_position_band": 1e-7}, VERY_NOISY, 5e-5, 0.001,
+     {("holding", 1), ("left", True), ("unsettled", True), ("reason", 1)}),
+    ({"tolerance": 2e-5, "in_position": True}, NOISY, 1e-3, 0.01,
+     {("coasting", 1), ("holding", 1), ("reason", 1)}),
+    ({"tolerance": 1e-6, "in_position": False}, NOISY, 1e-3, 0.001,
+     {("released", 1), ("reason", 1)}),
+], ids=["1khz_settles", "1khz_hunts", "1khz_leaves_the_hold", "100hz_window_on",
+        "1khz_window_off"])
+def test_the_pids_window_is_the_python_pids_bit_for_bit(
+        library: NativeControllerLibrary, plant_lib: NativeLibrary, values: dict[str, Any],
+        params: dict[str, float], x_ref: float, T: float, reached: set) -> None:
+    """The PID's in-position window (on by default at 1 kHz), 2000 samples: on a noisy
+    encoder it coasts into the window, holds, sees the table creep and settles; with a
+    tolerance of 0.1 um on a noisier one it leaves the hold and stops hunting; with a band
+    of 0.1 um it leaves the hold, takes a settled outcome back and settles again; the window
+    set on at 100 Hz and off at 1 kHz. The state saved in the middle of the first hold (or
+    of the run) goes on in new controllers as the run did."""
+    s = with_values({"kind": "pid", **values})
+    pair = Pair(library, s, T)
+    plant = NativePlant(plant_lib, {**TABLE_1, **params})
+    u, inputs, saved = 0.0, [], None
+    for k in range(2000):
+        assert plant.step(u, T) is None
+        x_meas = plant.outputs().x_meas
+        inputs.append((x_meas, x_ref, False))
+        u = pair.update(x_meas, x_ref)
+        if saved is None and (pair.c.law.holding and pair.c.law.h_n > 0 or k == 1000):
+            saved = (k + 1, pair.py.state(), pair.copy())
+        pair.same_state()
+    assert reached <= pair.seen, sorted(reached - pair.seen)
+    at, saved_py, saved_c = saved
+    tail = replay(Pair(library, s, T), inputs)[at:]
+    python = make_controller(s, T)
+    python.set_state(saved_py)
+    restored = Pair(library, s, T, buffer=saved_c, python=python)
+    assert library.state_problem(saved_c) is None
+    restored.same_state()
+    assert replay(restored, inputs[at:]) == tail
+
+
+@pytest.mark.parametrize(("T", "values"), [
+    (1e-3, {}), (1e-3 * (1.0 + 5e-10), {}), (1e-3 * (1.0 + 2e-9), {}), (0.01, {}),
+    (1e-3, {"in_position": False}), (0.01, {"in_position": True}),
+    (1e-3, {"tolerance": 1e-7, "x_resolution": 1e-6}), (1e-3, {"in_position_band": 0.0}),
+])
+def test_the_pids_window_is_set_as_the_python_pids(
+        library: NativeControllerLibrary, T: float, values: dict[str, Any]) -> None:
+    """On by default up to T = 1 ms (a relative 1e-9 beyond), its half-width the tolerance,
+    at least one count, each as pid.in_position_window gives them."""
+    from papwc.controllers.pid import in_position_window
+
+    s = with_values({"kind": "pid", **values})
+    c = c_struct().from_buffer(library.new(s, T))
+    on, band = in_position_window(s, T)
+    assert (bool(c.cfg.window), bits(c.cfg.w_band), bits(c.cfg.q)) == (
+        on, bits(band), bits(s.x_resolution))
+    assert on == (T < 1.0000000015e-3 if "in_position" not in values else values["in_position"])
+
+
 # --- settings: the model layer's checks ----------------------------------------------------------
 
 def c_problems(library: NativeControllerLibrary, values: dict[str, Any], T: float) -> list[str]:
@@ -456,8 +586,10 @@ def test_pc_check_accepts_the_defaults_and_refuses_the_kinds_it_lacks(
         library: NativeControllerLibrary) -> None:
     for kind in NATIVE_KINDS:
         assert c_problems(library, {"kind": kind}, 0.01) == []
-    assert c_problems(library, {"kind": "exact"}, 0.01) == [
-        "parameter kind = 3 (exact): the C controller implements pwc (1), papwc (2) and pid (4)"]
+    for code, kind in ((3, "exact"), (5, "dual_loop"), (6, "hybrid")):
+        assert c_problems(library, {"kind": kind}, 0.01) == [
+            f"parameter kind = {code} ({kind}): the C controller implements pwc (1), papwc (2) "
+            "and pid (4)"]
 
 
 def test_a_state_out_of_its_ranges_is_refused(library: NativeControllerLibrary) -> None:
@@ -473,6 +605,17 @@ def test_a_state_out_of_its_ranges_is_refused(library: NativeControllerLibrary) 
     broken = pair.copy()
     c_struct().from_buffer(broken).rest.ring_n = -3
     assert "rest detection" in library.state_problem(broken)
+    pid = Pair(library, with_values({"kind": "pid", "in_position": True}), 0.001)
+    for k in range(30):
+        pid.update(0.0 if k < 2 else 1e-4, 0.01)
+    for field, value in (("holding", 2), ("coasting", -1), ("ring_n", -1), ("h_look", -2)):
+        broken = pid.copy()
+        setattr(c_struct().from_buffer(broken).law, field, value)
+        assert library.state_problem(broken) == "a count of the PID is out of its range", field
+    broken = pid.copy()
+    law = c_struct().from_buffer(broken).law
+    law.holding, law.h_look = 1, 0  # the decisions' count would never grow: refused
+    assert library.state_problem(broken) == "a count of the PID is out of its range"
     broken = pair.copy()
     c_struct().from_buffer(broken).cfg.n_max = 5
     assert library.state_problem(broken) == "its derived values are not those of its settings"

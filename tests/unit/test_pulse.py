@@ -105,6 +105,31 @@ def test_pulse_displacement_and_response_agree_with_stepping(n, f_p):
     assert_allclose(t_rest, t_closed, rtol=5e-15, atol=0.0)
 
 
+_ANY = st.one_of(st.floats(allow_nan=True, allow_infinity=True),
+                 st.sampled_from([0.0, -0.0, 5e-324, 1e-300, math.inf, -math.inf, math.nan]))
+
+
+@settings(max_examples=3000, deadline=None)
+@given(f_p=st.one_of(st.floats(-1e4, 1e4), _ANY),
+       t_p=st.one_of(st.floats(0.0, 100.0), st.sampled_from([0.01, 0.02, 0.3]), _ANY),
+       m=st.one_of(st.floats(1e-3, 1e6), _ANY), f_c=st.one_of(st.floats(0.0, 1e4), _ANY),
+       c=st.one_of(st.floats(0.0, 1e6), st.floats(0.0, 1e-6), _ANY))
+def test_pulse_displacement_is_pulse_response_bit_for_bit(f_p, t_p, m, f_c, c):
+    """pulse_displacement writes out pulse_response's two segments: the same float, sign of
+    a zero, inf and NaN included, for any input (or the same exception)."""
+    try:
+        want = pulse_response(f_p, t_p, m, f_c, c)[0]
+    except (ArithmeticError, ValueError) as exc:
+        with pytest.raises(type(exc)):
+            pulse_displacement(f_p, t_p, m, f_c, c)
+        return
+    got = pulse_displacement(f_p, t_p, m, f_c, c)
+    if math.isnan(want):
+        assert math.isnan(got)
+    else:
+        assert got == want and math.copysign(1.0, got) == math.copysign(1.0, want)
+
+
 @pytest.mark.parametrize("f_p", PULSE_HEIGHTS)
 def test_negative_pulse_mirrors_positive(f_p):
     for n in (1, 4, 13):

@@ -169,11 +169,11 @@ def test_after_a_miss_no_pulse_unlike_those_tried():
     ctl.seq.pred = 0.0
     ctl.learn(1, 127.5, 0.0)  # did not move
     ctl.learn(1, 178.7, 3.07e-6)
-    ctl.errors = [1.0, 0.9]  # the last pulse moved a tenth of its prediction
+    ctl.fitted.errors = [1.0, 0.9]  # the last pulse moved a tenth of its prediction
     e = 4.7e-5
     n, f_p = ctl.plan_pulse(e)
     assert n == 1 and 0.0 < f_p <= 178.7 * 1.1 * (1 + 1e-12)
-    ctl.errors = [1.0, 0.1]  # predicted well: the model plans freely
+    ctl.fitted.errors = [1.0, 0.1]  # predicted well: the model plans freely
     assert ctl.plan_pulse(e) != (n, f_p)
 
 
@@ -190,15 +190,15 @@ def test_a_pulse_wider_than_any_made_goes_at_most_three_times_the_farthest_move(
              (182.9, 1.98e-6), (201.1, 4.54e-6)]
     for f, d in moves:
         ctl.learn(1, f, d)
-    ctl.trust.value, ctl.errors = 1.0, [0.1, 0.1]
+    ctl.trust.value, ctl.fitted.errors = 1.0, [0.1, 0.1]
     assert ctl.estimator.rel_misfit > 0.2
     e = 3.96e-5
     assert ctl.plan_displacement(e)[0] == 2  # what the model alone would plan
     n, f_p = ctl.plan_pulse(e)
-    assert ctl.breakaway.smooth and n == 1 and f_p > ctl.breakaway.lowest() > 0.0
+    assert ctl.evidence.breakaway.smooth and n == 1 and f_p > ctl.evidence.breakaway.lowest() > 0.0
     assert ctl.predict(n, f_p) <= 2.0 / 3.0 * 3.0 * 4.54e-6 * (1 + 1e-9)
     ctl.learn(2, 230.0, 3e-5)  # a two-sample pulse made: no longer wider than any
-    ctl.trust.value, ctl.errors = 1.0, [0.1, 0.1]
+    ctl.trust.value, ctl.fitted.errors = 1.0, [0.1, 0.1]
     n, f_p = ctl.plan_pulse(e)
     assert ctl.predict(n, f_p) == pytest.approx(e, rel=1e-6)
 
@@ -214,14 +214,14 @@ def test_a_model_that_missed_falls_back_to_the_smallest_pulse():
     e = 10.0 * d_small
     trusted = ctl.plan_pulse(e)
     assert trusted != (1, ctl.f_floor)  # a model that predicts well plans the move
-    ctl.misses, ctl.errors = 1, [0.1, 0.8]
+    ctl.cautious.misses, ctl.fitted.errors = 1, [0.1, 0.8]
     ctl.estimator.rel_misfit = 0.8
     ctl.seq.pulses = 1  # within a maneuver (its first pulse may be one on the evidence)
     assert ctl.plan_pulse(e) == (1, ctl.f_floor)
     assert ctl.plan_pulse(-e) == (1, -ctl.f_floor)
     assert ctl.plan_pulse(0.5 * d_small)[1] == 0.0
     assert ctl.seq.refusal == Reason.NO_MOVE_HELPS
-    ctl.misses = 3
+    ctl.cautious.misses = 3
     assert ctl.plan_pulse(e) == (1, ctl.f_floor)
     assert ctl.plan_pulse(0.5 * d_small)[1] == 0.0
     assert ctl.seq.refusal == Reason.MODEL_REJECTED
@@ -239,7 +239,7 @@ def test_a_rejected_model_steps_up_a_smallest_pulse_that_only_crept():
     ctl.rest.update_test()
     band, f_lo = ctl.rest.band, ctl.f_floor
     assert band > 0.0
-    ctl.misses, ctl.seq.pulses = 3, 1
+    ctl.cautious.misses, ctl.seq.pulses = 3, 1
     e = 2.0 * ctl.displacement(1, 1.1 * f_lo)
     # moved: the smallest again
     (ctl.seq.last_n, ctl.seq.last_f), ctl.seq.last_d = (1, f_lo), 2.0 * band
@@ -407,7 +407,7 @@ def test_outcome_codes_are_outputs_with_their_words():
 
 def test_a_stopped_maneuver_says_why_and_a_settled_one_is_within_tolerance():
     budget = _run(TABLE_1, _settings("exact", tolerance=1e-9, m_est=60.0, f_c_est=40.0,
-                                     max_pulses=1), iterations=1)
+                                     settle_timeout=0.1), iterations=1)
     s = summarize(budget.traces[0], 1e-9)
     assert (s["outcome"], s["outcome_reason"]) == ("stopped", "pulse_budget")
     assert abs(s["final_error_m"]) > 1e-9

@@ -52,8 +52,8 @@ PAPWC_FIELDS = ("kind, f_p_max, t_p_max, K_c, tolerance, m_est, f_c_est, f_p_min
          "[maneuver] field 'iterations': iterations = 1.5: must be a whole number 1 <= "
          "iterations <= 1000000"),
         (('kind = "papwc"', 'kind = "lqr"'), "kind",
-         "[[controller]] #1 field 'kind' = 'lqr': must be one of 'dual_loop', 'exact', 'papwc', "
-         "'pid', 'pwc'"),
+         "[[controller]] #1 field 'kind' = 'lqr': must be one of 'dual_loop', 'exact', 'hybrid', "
+         "'papwc', 'pid', 'pwc'"),
         (('kind = "papwc"', 'kind = "papwc"\nK_c = 2.5'), "K_c",
          "[[controller]] #1 field 'K_c': K_c = 2.5: must satisfy 0 < K_c < 2 (Eq. (6))"),
         (('kind = "papwc"', 'kind = "papwc"\nt_p_max = "long"'), "t_p_max",
@@ -90,8 +90,8 @@ def test_scenario_errors_name_the_file_and_the_field(tmp_path, change, field, me
 
 #: An exact controller's table with each of its own settings wrong.
 EXACT_ERRORS = [
-    ("history = 0", "history", "history = 0: must be a whole number 1 <= history <= 1000"),
-    ("history = -1", "history", "history = -1: must be a whole number 1 <= history <= 1000"),
+    ("history = 0", "history", "history = 0: must be a whole number 1 <= history <= 52"),
+    ("history = -1", "history", "history = -1: must be a whole number 1 <= history <= 52"),
     ('c_est = "x"', "c_est", "c_est = 'x': must be a number"),
     ("f_s_tol = 0", "f_s_tol", "f_s_tol = 0: must satisfy 0 < f_s_tol <= 1"),
     ("f_s_tol = 1.5", "f_s_tol", "f_s_tol = 1.5: must satisfy 0 < f_s_tol <= 1"),
@@ -211,7 +211,7 @@ def test_each_kind_reads_the_shared_settings_and_its_own(kind):
     ("values", "expected"),
     [
         ({"kind": "lqr"}, [("kind", "kind = 'lqr': must be one of 'pwc', 'papwc', 'exact', "
-                                    "'pid', 'dual_loop'")]),
+                                    "'pid', 'dual_loop', 'hybrid'")]),
         ({"k_p": -5.0}, [("k_p", "k_p = -5.0 N/m: must satisfy 0 < k_p <= 1e+15 N/m")]),
         ({"k_d": None, "k_p": None, "f_p_min": None}, []),
         ({"f_p_min": 301.0}, [("f_p_min", "f_p_min = 301.0 N: must satisfy 0 <= f_p_min <= "

@@ -45,7 +45,7 @@ _METRIC_TYPES = {"final_error_m": "number", "pulses": "int", "settle_time_s": "n
                  "f_c_hat": "number"}
 #: Metrics a record may lack (older records), checked where present.
 _OPTIONAL_METRIC_TYPES = {"outcome": "str", "outcome_reason": "str", "pulse_ratio": "number",
-                          "ends_farther": "bool"}
+                          "ends_farther": "bool", "settled_span_m": "number"}
 
 
 def _is_number(value) -> bool:

@@ -8,7 +8,13 @@ from pathlib import Path
 
 from papwc.battery.plan import RunSpec, controller_tables, get_field
 from papwc.battery.schema import Battery
-from papwc.battery.spec import RATIO_SLACK, SPEC_COLUMNS, spec_markdown, spec_rows
+from papwc.battery.spec import (
+    RATIO_SLACK,
+    SPEC_COLUMNS,
+    beside_markdown,
+    spec_markdown,
+    spec_rows,
+)
 from papwc.controllers.settings import ControllerSettings
 from papwc.output_files import save_figure
 from papwc.results.pulses import ROW_COLUMNS
@@ -21,10 +27,13 @@ from papwc.scenario import (
 
 
 #: Metrics per iteration, as :func:`papwc.master.summarize` returns them, then the
-#: largest ratio of a pulse's displacement to its bound (:mod:`papwc.results.pulses`) and
-#: whether the iteration ended farther from the target than it started.
+#: largest ratio of a pulse's displacement to its bound (:mod:`papwc.results.pulses`),
+#: whether the iteration ended farther from the target than it started, and how far the
+#: table moved after the controller called it settled in the iteration's last 0.5 s
+#: (:func:`papwc.results.summary.settled_span`).
 METRICS = ("final_error_m", "pulses", "settle_time_s", "limit_cycle", "cycle_p2p_m",
-           "b_hat", "f_c_hat", "outcome", "outcome_reason", "pulse_ratio", "ends_farther")
+           "b_hat", "f_c_hat", "outcome", "outcome_reason", "pulse_ratio", "ends_farther",
+           "settled_span_m")
 
 
 def _label_of(table: dict, i: int) -> str:
@@ -130,7 +139,8 @@ def pulse_rows(runs: list[RunSpec], records: dict, has_cases: bool) -> list[dict
 def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[dict],
                      fmu_sha256: str, spec_table: list[dict] | None = None) -> str:
     """The text of summary.md (with ``spec_table``, from :func:`spec_rows`: each battery's
-    spec table after its summary table)."""
+    spec table after its summary table, and every controller of a battery and its companions
+    side by side, :func:`papwc.battery.spec.beside_markdown`)."""
     lines = ["# Battery results", ""]
     failed_keys = {(r["battery"], r["run_id"]) for r in rows if r["status"] == "error"}
     n_err = len(failed_keys)
@@ -204,6 +214,8 @@ def summary_markdown(batteries: list[Battery], runs: list[RunSpec], rows: list[d
             if len(failed) > 20:
                 lines.append(f"- … and {len(failed) - 20} more (see results.csv)")
             lines.append("")
+    if spec_table is not None:
+        lines += beside_markdown(spec_table)
     return "\n".join(lines)
 
 

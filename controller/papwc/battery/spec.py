@@ -38,9 +38,10 @@ from papwc.battery.schema import Battery
 from papwc.errors import BatteryError
 from papwc.results.pulses import NEAR_M, pulse_class
 
-__all__ = ["COMPARED", "COMPARE_COLUMNS", "R7_SHARE_OF_T", "REQUIREMENTS", "SPEC_COLUMNS",
-           "Target", "compare_markdown", "compare_rows", "hard_pulses", "read_spec",
-           "spec_markdown", "spec_rows", "verdicts"]
+__all__ = ["COMPANION_SUFFIXES", "COMPARED", "COMPARE_COLUMNS", "R7_SHARE_OF_T",
+           "REQUIREMENTS", "SPEC_COLUMNS", "Target", "beside_markdown", "companion_base",
+           "compare_markdown", "compare_rows", "hard_pulses", "read_spec", "spec_markdown",
+           "spec_rows", "verdicts"]
 
 #: The error band of a success, m (within 1 um), and the near-target band of the spec.
 WITHIN_1UM = 1e-6
@@ -122,8 +123,10 @@ class Target:
 
 
 _EXACT = ("exact",)
+_HYBRID = ("hybrid",)
 #: The spec's requirements, in order (issue 43's table; R7 is papwc bench's, F2 and A are
-#: not judged here).
+#: not judged here), then issue 46's hybrid (H: within 1 um and one count in 2 s, no ramp
+#: beyond its bound at abs(e) >= 1 um, no hunting after it settled).
 REQUIREMENTS: tuple[Target, ...] = (
     Target("R1", "within_1um", "runs", at_least=0.85, kinds=_EXACT, maneuvers="short"),
     Target("R1", "within_count", "counted_runs", at_least=0.50, kinds=_EXACT,
@@ -143,6 +146,12 @@ REQUIREMENTS: tuple[Target, ...] = (
     Target("R6", "settle_median_s", at_most=1.0, kinds=_EXACT),
     Target("R6", "settle_p95_s", at_most=2.0, kinds=_EXACT),
     Target("P", "within_20um", "runs", at_least=0.95, kinds=("papwc",)),
+    # issue 46's 1 kHz pulse hybrid
+    Target("H", "within_1um", "runs", at_least=0.99, kinds=_HYBRID, maneuvers="short"),
+    Target("H", "within_count", "counted_runs", at_least=0.90, kinds=_HYBRID,
+           maneuvers="short"),
+    Target("H", "runaway_far", at_most=0.0, kinds=_HYBRID, hard=True),
+    Target("H", "hunting", at_most=0.0, kinds=_HYBRID, hard=True),
 )
 #: The requirement ids, in order (spec.csv has a verdict column for each).
 REQUIREMENT_IDS: tuple[str, ...] = tuple(dict.fromkeys(t.requirement for t in REQUIREMENTS))
@@ -155,7 +164,8 @@ SPEC_COLUMNS = ("battery", "case", "controller", "kind", "seed_offset", "rigid",
                 "largest_runaway_m", "far_pulses", "far_beyond", "planned_pulses",
                 "planned_beyond", "mid_pulses", "mid_beyond", "mid_beyond_3x",
                 "near_over_20um", "maneuvers", "farther", "false_settled",
-                "false_settled_any", "time_ended", *REQUIREMENT_IDS)
+                "false_settled_any", "time_ended", "settled_late", "hunting",
+                *REQUIREMENT_IDS)
 
 
 def _beyond(pulse: dict, factor: float = 1.0) -> bool:
@@ -230,7 +240,9 @@ def spec_rows(batteries: list[Battery], runs: list[RunSpec], records: dict,
     ``within_1e7`` (of the runs on an ideal encoder, those within 1e-7 m),
     ``within_20um``, ``settle_median_s`` and ``settle_p95_s`` (over the runs with status
     ok, the settle time of a run that ended ``settled``, inf for one that did not),
-    ``false_settled`` and ``time_ended``. Over every iteration: ``maneuvers``, ``farther``
+    ``false_settled`` and ``time_ended``, ``settled_late`` and ``hunting`` (the runs called
+    settled in the last 0.5 s, and those in which the table then moved more than one count,
+    1e-7 m on an ideal encoder). Over every iteration: ``maneuvers``, ``farther``
     (ended farther from the target than they started) and ``false_settled_any``. Over
     every pulse that moved: ``pulses_far`` and ``runaway_far`` (fired at abs(e) >= 1 um,
     and those of them beyond their bound), ``pulses_near`` and ``runaway_near`` (the same
@@ -291,10 +303,26 @@ def spec_rows(batteries: list[Battery], runs: list[RunSpec], records: dict,
             "false_settled": sum(1 for r, _ in g["last"] if r.get("false_settled")),
             "false_settled_any": sum(1 for r in g["all"] if r.get("false_settled")),
             "time_ended": sum(1 for r, _ in ok if r.get("outcome_reason") == "time_ended"),
+            **_hunting(ok),
         }
         row.update(verdicts(row))
         out.append(row)
     return out
+
+
+def _hunting(ok: list[tuple[dict, float]]) -> dict:
+    """``settled_late``: the runs (last iteration, status ok) that the controller called
+    settled in the last 0.5 s; ``hunting``: those in which the table then moved more than
+    one count (``q``; 1e-7 m on an ideal encoder): ``settled_span_m``
+    (:func:`papwc.results.summary.settled_span`)."""
+    spans = []
+    for r, q in ok:
+        value = r.get("settled_span_m", "")
+        span = math.nan if value in ("", None) else float(value)
+        if span == span:
+            spans.append((span, q if q > 0.0 else WITHIN_IDEAL))
+    return {"settled_late": len(spans),
+            "hunting": sum(1 for span, q in spans if span > q * (1.0 + RATIO_SLACK))}
 
 
 def _share(n, of) -> str:
@@ -342,12 +370,13 @@ def spec_markdown(battery: Battery, spec: list[dict]) -> list[str]:
              "Last iteration of each run: within 1 um, within one encoder count (of the runs "
              "with a count), within 1e-7 m (of the runs on an ideal encoder), within 20 um, "
              "the settle time (median and p95 over the runs; inf: more than that share did "
-             "not end `settled`), `time_ended`. Every iteration: maneuvers that ended "
-             "farther than they started, false `settled`.", "",
+             "not end `settled`), `time_ended`, the runs called settled in the last 0.5 s "
+             "in which the table then moved more than one count (hunting). Every iteration: "
+             "maneuvers that ended farther than they started, false `settled`.", "",
              first + "| controller | runs | within 1 um | within one count | within 1e-7 m "
              "(ideal) | within 20 um | settle median (s) | settle p95 (s) | farther | false "
-             "settled | time_ended | verdicts |",
-             rule + "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
+             "settled | time_ended | hunting after settled | verdicts |",
+             rule + "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|"]
     for r in mine:
         lines.append(
             lead(r) + f"| {r['runs']} | {_share(r['within_1um'], r['runs'])} | "
@@ -356,7 +385,8 @@ def spec_markdown(battery: Battery, spec: list[dict]) -> list[str]:
             f"{_share(r['within_20um'], r['runs'])} | "
             f"{_fmt(r['settle_median_s'], '.3f')} | {_fmt(r['settle_p95_s'], '.3f')} | "
             f"{r['farther']} of {r['maneuvers']} | {r['false_settled_any']} | "
-            f"{r['time_ended']} | {_verdict_text(r)} |")
+            f"{r['time_ended']} | {_share(r['hunting'], r['settled_late'])} | "
+            f"{_verdict_text(r)} |")
     lines += ["", "Pulses that moved, every iteration, against their bound `bound_m = "
               "max(1.5*abs(e) + one count, quantum_m)` (`papwc.results.pulses`; every pulse "
               "is in `pulses.csv`): beyond it at abs(e) >= 50 um (any width), planned pulses "
@@ -394,6 +424,8 @@ COMPARED: tuple[tuple[str, str, str], ...] = (
     ("beyond 3x at 1-50 um", "mid_beyond_3x", ""),
     ("beyond below 1 um", "runaway_near", "pulses_near"),
     ("moving > 20 um below 1 um", "near_over_20um", ""),
+    ("beyond at >= 1 um", "runaway_far", "pulses_far"),
+    ("hunting after settled", "hunting", "settled_late"),
 )
 
 
@@ -421,6 +453,10 @@ def compare_rows(tuned: Sequence[dict], other: Sequence[dict]) -> list[dict]:
                     "other": _verdict_text(b) if b else "–"})
     return out
 
+
+#: Figures spec.csv gained after its first form (issue 46): a spec.csv without them is read,
+#: its cells shown "–".
+_LATER = frozenset(("settled_late", "hunting"))
 
 #: Columns of :func:`compare_rows`.
 COMPARE_COLUMNS = ("battery", "case", "controller", "figure", "tuned", "other")
@@ -451,7 +487,7 @@ def read_spec(path: str | os.PathLike) -> list[dict]:
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
         raise BatteryError(f"{path}: cannot be read as a spec.csv: {exc}") from None
     needed = ["battery", "case", "controller", *dict.fromkeys(
-        c for _, figure, of in COMPARED for c in (figure, of) if c)]
+        c for _, figure, of in COMPARED for c in (figure, of) if c and c not in _LATER)]
     missing = [c for c in needed if c not in columns]
     if missing:
         raise BatteryError(f"{path}: not a spec.csv of this papwc: column(s) "
@@ -481,9 +517,70 @@ def _shown(row: dict | None, figure: str, of: str) -> str:
     return _fmt(value, ".3f") if figure.endswith("_s") else f"{value:g}"
 
 
+#: Suffixes of companion batteries: the same tables (plants, cases, grid, draws) with other
+#: controllers or another sample period (``realism_mc_1khz.toml``, ``realism_mc_hybrid.toml``
+#: beside ``realism_mc.toml``); the spec shows their rows beside the base battery's.
+COMPANION_SUFFIXES = ("_1khz", "_hybrid")
+
+
+def companion_base(name: str) -> str:
+    """The battery whose tables a companion battery runs (``realism_mc`` for
+    ``realism_mc_1khz``), else ``name``."""
+    for suffix in COMPANION_SUFFIXES:
+        if name.endswith(suffix):
+            return name[: -len(suffix)]
+    return name
+
+
+def _beside(keys: Sequence[tuple[str, str, str]]) -> dict[str, list[tuple[str, str, str]]]:
+    """(battery, case, controller) keys grouped by their base battery, each group ordered by
+    case (in the order the cases first appear) and then as given."""
+    groups: dict[str, list[tuple[str, str, str]]] = {}
+    for key in keys:
+        groups.setdefault(companion_base(key[0]), []).append(key)
+    for base, group in groups.items():
+        cases = list(dict.fromkeys(case for _, case, _ in group))
+        groups[base] = sorted(group, key=lambda k: cases.index(k[1]))
+    return groups
+
+
+def beside_markdown(spec: list[dict]) -> list[str]:
+    """Lines of summary.md's table of every controller side by side: per base battery with a
+    companion (:data:`COMPANION_SUFFIXES`), each case's controllers of the base battery and of
+    its companions, one row each (empty if no companion ran)."""
+    by_key = {(r["battery"], r["case"], r["controller"]): r for r in spec}
+    groups = {base: keys for base, keys in _beside(list(by_key)).items()
+              if len({k[0] for k in keys}) > 1}
+    if not groups:
+        return []
+    lines = ["## Every controller side by side", "",
+             "The controllers of each battery and of its companions (the same tables with other "
+             "controllers or sample periods: "
+             + ", ".join(f"`*{s}`" for s in COMPANION_SUFFIXES)
+             + "), case by case. Figures of the spec tables above.", ""]
+    for base, keys in groups.items():
+        lines += [f"### {base}", "",
+                  "| case | controller | battery | within 1 um | within one count | within 20 um "
+                  "| farther | false settled | beyond at >= 1 um | hunting after settled | "
+                  "verdicts |",
+                  "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---|"]
+        for key in keys:
+            r = by_key[key]
+            lines.append(
+                f"| {r['case']} | {r['controller']} | {r['battery']} | "
+                f"{_share(r['within_1um'], r['runs'])} | "
+                f"{_share(r['within_count'], r['counted_runs'])} | "
+                f"{_share(r['within_20um'], r['runs'])} | {r['farther']} of {r['maneuvers']} | "
+                f"{r['false_settled_any']} | {_share(r['runaway_far'], r['pulses_far'])} | "
+                f"{_share(r['hunting'], r['settled_late'])} | {_verdict_text(r)} |")
+        lines.append("")
+    return lines
+
+
 def compare_markdown(rows: list[dict], tuned: str, other: str) -> str:
-    """The side-by-side table of :func:`compare_rows` as Markdown: per battery one row per
-    case and controller, each figure ``tuned → out of sample``."""
+    """The side-by-side table of :func:`compare_rows` as Markdown: per battery (a companion's
+    rows beside its base battery's, :data:`COMPANION_SUFFIXES`) one row per case and
+    controller, each figure ``tuned → out of sample``."""
     labels = [label for label, _, _ in COMPARED] + ["verdicts"]
     lines = ["# Spec: tuned and out of sample", "",
              f"Tuned: `{tuned}`. Out of sample: `{other}`. Each cell: tuned → out of sample. "
@@ -492,12 +589,15 @@ def compare_markdown(rows: list[dict], tuned: str, other: str) -> str:
     for r in rows:
         cells.setdefault((r["battery"], r["case"], r["controller"]), {})[r["figure"]] = (
             f"{r['tuned']} → {r['other']}")
-    for battery in dict.fromkeys(k[0] for k in cells):
-        lines += [f"## {battery}", "", "| case | controller | " + " | ".join(labels) + " |",
-                  "|---|---|" + "---:|" * (len(labels) - 1) + "---|"]
-        for (b, case, controller), figures in cells.items():
-            if b == battery:
-                lines.append(f"| {case} | {controller} | "
-                             + " | ".join(figures.get(label, "–") for label in labels) + " |")
+    for base, keys in _beside(list(cells)).items():
+        several = len({k[0] for k in keys}) > 1
+        lines += [f"## {base}", "", "| case | controller | " + ("battery | " if several else "")
+                  + " | ".join(labels) + " |",
+                  "|---|---|" + ("---|" if several else "") + "---:|" * (len(labels) - 1)
+                  + "---|"]
+        for key in keys:
+            figures = cells[key]
+            lines.append(f"| {key[1]} | {key[2]} | " + (f"{key[0]} | " if several else "")
+                         + " | ".join(figures.get(label, "–") for label in labels) + " |")
         lines.append("")
     return "\n".join(lines)

@@ -27,7 +27,7 @@ examples:
                                    # host's Python 3.10+) instead of the native one
   papwc build --scenario scenarios/long_move.toml --controller 2
                                    # ClosedLoop.ssp for another scenario's 2nd controller
-                                   # (PulseControllerPython.fmu in it for exact, dual_loop)
+                                   # (PulseControllerPython.fmu in it for exact, dual_loop, hybrid)
   fmpy simulate build/FrictionPlant.fmu --output-interval 0.01 --stop-time 1 \\
       --input-file scenarios/pulse_in.csv --output-file pulse_out.csv
 """

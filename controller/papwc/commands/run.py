@@ -53,8 +53,8 @@ def add_controllers_option(parser: argparse.ArgumentParser) -> None:
                              "PulseController.fmu (native: built into OUT/fmu if needed; "
                              "auto, the default: where build/PulseController.fmu is current, "
                              "after papwc build) or every kind with the Python controllers "
-                             "(python); the same numbers either way. exact and dual_loop are "
-                             "Python")
+                             "(python); the same numbers either way. exact, dual_loop and "
+                             "hybrid are Python")
 
 
 def add_max_steps(parser: argparse.ArgumentParser) -> None:

@@ -30,6 +30,8 @@ import math
 from collections.abc import Mapping
 from typing import Any
 
+from .budget import Ops
+
 __all__ = ["BreakawayEvidence"]
 
 #: One-sample moves kept (newest last), how many of the newest the curves are fitted to,
@@ -39,8 +41,7 @@ FIT_MOVES = 12
 LOCAL_MOVES = 6
 #: Moves needed for a curve.
 MIN_MOVES = 3
-#: Golden-section steps of the curve's scale, and the span searched (natural log).
-GOLDEN_STEPS = 30
+#: The span of the curve's scale searched (natural log).
 U_SPAN = 12.0
 #: Exponents of the move curve: from a table that creeps in proportion to the excess (1)
 #: to an actuator lag's steep start (the force's time above breakaway grows with the
@@ -63,6 +64,23 @@ FRESH_MARGIN = 0.005
 PRIOR_SHARE = 0.5
 
 
+def _upper_envelope(lines: list[tuple[float, float]]) -> list[tuple[float, float]]:
+    """The lines ``(slope, intercept)`` that make the upper envelope of ``lines``, by slope:
+    consecutive ones take over from each other where they cross."""
+    hull: list[tuple[float, float]] = []
+    for a, b in sorted(lines):
+        if hull and hull[-1][0] == a:
+            hull.pop()  # of equal slopes the one above (sorted: the later)
+        while len(hull) >= 2:
+            (a1, b1), (a2, b2) = hull[-2], hull[-1]
+            if (b1 - b) * (a2 - a1) <= (b1 - b2) * (a - a1):
+                hull.pop()  # the new line takes over before the last one does
+            else:
+                break
+        hull.append((a, b))
+    return hull
+
+
 class BreakawayEvidence:
     """Breakaway force bounds and the move curve of one-sample pulses near breakaway.
 
@@ -74,6 +92,8 @@ class BreakawayEvidence:
         Estimate of the mass, kg (the curve before one is fitted).
     T : float
         Sample period, s.
+    ops : Ops, optional
+        The operations counter of the controller's update (:mod:`papwc.controllers.budget`).
 
     Attributes
     ----------
@@ -93,7 +113,8 @@ class BreakawayEvidence:
 
     FIELDS = ("smooth", "f_lb", "moves", "fresh", "held")
 
-    def __init__(self, f_c: float, m: float, T: float) -> None:
+    def __init__(self, f_c: float, m: float, T: float, ops: Ops | None = None) -> None:
+        self.ops = ops if ops is not None else Ops()
         self.f_c = float(f_c)
         self.m = float(m)
         self.T = float(T)
@@ -212,8 +233,10 @@ class BreakawayEvidence:
         move)]``, so the log-likelihood of the moves is ``-n*log(width) - sum(log
         D'(eps_i))`` (the second term the change of variables from breakaway to move).
         Pulses of different heights that broke away near one force identify the curve.
-        For each exponent of a grid over ``P_RANGE`` the scale is found by golden-section
-        search. Without ``MIN_MOVES`` moves there is no curve.
+        For each exponent of a grid over ``P_RANGE`` the most likely scale is found exactly
+        (:meth:`_most_likely_scale`: the likelihood is a piecewise linear function's in
+        disguise), within ``exp(-U_SPAN)`` of the largest the proofs allow. Without
+        ``MIN_MOVES`` moves there is no curve.
         """
         key = (self.f_lb, *chosen)  # the fit reads f_lb too
         if key not in self._fits:
@@ -227,46 +250,71 @@ class BreakawayEvidence:
             return []
         n = len(moves)
         still = max([self.f_lb] + [lo for _, lo, _ in moves])
+        fs = [f for f, _, _ in moves]
+        log_d = [math.log(d) for _, _, d in moves]
         found = []
         for k in range(P_STEPS + 1):
             p = P_RANGE[0] + (P_RANGE[1] - P_RANGE[0]) * k / P_STEPS
             cs = [d ** (1.0 / p) for _, _, d in moves]
-            sum_log_c = sum(math.log(c) for c in cs)
             # u = a**(-1/p): eps_i = u*c_i; b_i >= lo_i (and > 0) bounds u above
             u_max = min((f - lo) / c if lo > 0.0 else f / c
                         for (f, lo, _), c in zip(moves, cs, strict=True))
-            if not u_max > 0.0:
+            if not 0.0 < u_max < math.inf:
                 continue
-
-            def loglik(log_u: float, p: float = p, cs: list = cs,
-                       sum_log_c: float = sum_log_c) -> float:
-                u = math.exp(log_u)
-                bs = [f - u * c for (f, _, _), c in zip(moves, cs, strict=True)]
-                width = max(max(bs), still) - min(bs)
-                if not width > 0.0:
-                    return -math.inf
-                # log D'(eps) = log(a*p) + (p - 1)*log(eps), a = u**-p, eps = u*c
-                log_slope = n * (math.log(p) - p * log_u) + (p - 1.0) * (n * log_u + sum_log_c)
-                return -n * math.log(width) - log_slope
-
-            lo_u, hi_u = math.log(u_max) - U_SPAN, math.log(u_max)
-            g = (math.sqrt(5.0) - 1.0) / 2.0
-            x1, x2 = hi_u - g * (hi_u - lo_u), lo_u + g * (hi_u - lo_u)
-            f1, f2 = loglik(x1), loglik(x2)
-            for _ in range(GOLDEN_STEPS):
-                if f1 >= f2:
-                    hi_u, x2, f2 = x2, x1, f1
-                    x1 = hi_u - g * (hi_u - lo_u)
-                    f1 = loglik(x1)
-                else:
-                    lo_u, x1, f1 = x1, x2, f2
-                    x2 = lo_u + g * (hi_u - lo_u)
-                    f2 = loglik(x2)
-            log_u = x1 if f1 >= f2 else x2
-            ll = max(f1, f2)
+            log_u = self._most_likely_scale(fs, cs, still, u_max)
+            u = math.exp(log_u)
+            bs = [f - u * c for f, c in zip(fs, cs, strict=True)]
+            width = max(max(bs), still) - min(bs)
+            if not width > 0.0:
+                continue
+            # log D'(eps) = log(a*p) + (p - 1)*log(eps), a = u**-p, eps = u*c
+            log_slope = n * (math.log(p) - p * log_u) + (p - 1.0) * (n * log_u + sum(log_d) / p)
+            ll = -n * math.log(width) - log_slope
             if math.isfinite(ll):
                 found.append((ll, math.exp(-p * log_u), p))
         return found
+
+    def _most_likely_scale(self, fs: list[float], cs: list[float], still: float,
+                           u_max: float) -> float:
+        """log u of the most likely curve of one exponent (see :meth:`fit`), exactly.
+
+        The log-likelihood is ``-n*log(width(u)/u) - n*log(p) - (p - 1)*sum(log(c_i))``, so
+        the most likely u makes ``width(u)/u`` least; with ``w = 1/u`` that is
+        ``H(w) = max(max_i(f_i*w - c_i), still*w) - min_i(f_i*w - c_i)``, convex and
+        piecewise linear in w: its least value over ``u`` in ``[u_max*exp(-U_SPAN), u_max]``
+        lies at an end or where a line takes over the upper or the lower envelope. Those
+        points (at most 2n + 2) are found from the envelopes and H is bisected over them
+        (convex: it falls, then rises): a dozen evaluations of H, each counted as one of
+        the likelihood (:mod:`.budget`).
+        """
+        w_lo, w_hi = 1.0 / u_max, math.exp(U_SPAN) / u_max
+        lines = [(f, -c) for f, c in zip(fs, cs, strict=True)]
+        corners = [w_lo, w_hi]
+        for hull in (_upper_envelope(lines + [(still, 0.0)]),
+                     _upper_envelope([(-a, -b) for a, b in lines])):
+            corners += [w for (a1, b1), (a2, b2) in zip(hull, hull[1:], strict=False)
+                        if w_lo < (w := (b1 - b2) / (a2 - a1)) < w_hi]
+        corners.sort()
+
+        values: dict[int, float] = {}
+
+        def h(i: int) -> float:
+            if i not in values:
+                self.ops.likelihood += 1
+                w = corners[i]
+                ys = [f * w - c for f, c in zip(fs, cs, strict=True)]
+                values[i] = max(max(ys), still * w) - min(ys)
+            return values[i]
+
+        lo, hi = 0, len(corners) - 1
+        while lo < hi:
+            mid = (lo + hi) // 2
+            if h(mid) <= h(mid + 1):
+                hi = mid
+            else:
+                lo = mid + 1
+        w = corners[lo]
+        return -math.log(w) if w > 0.0 else math.log(u_max)
 
     # -- state ---------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:

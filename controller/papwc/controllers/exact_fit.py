@@ -15,9 +15,10 @@ from collections.abc import Mapping
 from typing import Any
 
 from ..model.pulse import pulse_displacement
+from .budget import Ops
 from .sequencer import Z_DECIDE
 
-__all__ = ["PulseModelEstimator"]
+__all__ = ["JOB_FIELDS", "PulseModelEstimator"]
 
 #: A fit from a fresh start replaces the one continued from the current estimate only if
 #: its cost is below this fraction of the other's.
@@ -35,6 +36,12 @@ _SIGMA_PRIOR = (0.5, 0.5, 1.0)
 _THETA_BOUNDS = ((-3.0, 3.0), (-3.0, 3.0), (0.0, 50.0))
 #: Smallest relative error assumed for a planned pulse (model and rounding).
 _MISFIT_MIN = 1e-9
+#: The numbers of a fit under way (:attr:`PulseModelEstimator.job`): the start (0: from the
+#: estimate, 1: from the settings' estimates, 2: those with c = c_scale, 3: every start made),
+#: the Levenberg-Marquardt iterations made in it (-1: not begun), its damping, theta and cost,
+#: whether a best was found (1) and that theta and cost.
+JOB_FIELDS = ("start", "iteration", "mu", "theta_m", "theta_f_c", "theta_c", "cost", "found",
+              "best_m", "best_f_c", "best_c", "best_cost")
 
 
 def _solve3(a: list[list[float]], b: list[float]) -> list[float] | None:
@@ -89,11 +96,22 @@ class PulseModelEstimator:
     x_resolution : float
         Resolution of the position measurement, m (>= 0; 0 for an ideal one).
     iterations : int
-        Levenberg-Marquardt iterations per new pulse.
+        Levenberg-Marquardt iterations per start of a fit.
+    ops : Ops, optional
+        The operations counter of the controller's update (:mod:`papwc.controllers.budget`);
+        without one, every fit is made at once.
+
+    Attributes
+    ----------
+    job : list of float
+        The fit under way (:data:`JOB_FIELDS`; empty: none): after a pulse, the fit goes on
+        over as many updates as the budget asks (:meth:`advance`), the estimate
+        (``theta``) the last one completed.
     """
 
     def __init__(self, m_est: float, f_c_est: float, c_est: float, T: float, f_p_max: float,
-                 history: int = 16, x_resolution: float = 0.0, iterations: int = 12) -> None:
+                 history: int = 16, x_resolution: float = 0.0, iterations: int = 12,
+                 ops: Ops | None = None) -> None:
         self.m_est = float(m_est)
         self.f_c_est = float(f_c_est)
         self.T = float(T)
@@ -114,6 +132,8 @@ class PulseModelEstimator:
         #: Relative misfit of the model over the history beyond the measurement
         #: resolution (root mean square, at least ``_MISFIT_MIN``).
         self.rel_misfit = _MISFIT_MIN
+        self.ops = ops if ops is not None else Ops()
+        self.job: list[float] = []
 
     # -- parameters --------------------------------------------------------------------
     @staticmethod
@@ -159,6 +179,7 @@ class PulseModelEstimator:
     def displacement(self, f_p: float, n: int) -> float:
         """Predicted displacement of a pulse of height f_p (N) and n samples, Eq. (3), m."""
         m, f_c, c = self.params()
+        self.ops.eq3 += 1
         return pulse_displacement(f_p, n * self.T, m, f_c, c)
 
     def _theta2_max(self) -> float:
@@ -167,14 +188,16 @@ class PulseModelEstimator:
         return max(min(_THETA_BOUNDS[1][1], cap), _THETA_BOUNDS[1][0])
 
     # -- observations ------------------------------------------------------------------
-    def observe(self, n: int, f_p: float, d: float) -> None:
+    def observe(self, n: int, f_p: float, d: float, reserve: int | None = None) -> None:
         """Take one pulse: n samples of height f_p (N, signed), displacement d (m, signed).
 
         A pulse whose displacement along f_p is zero or negative (at most
         ``3*meas_sigma``, with a noisy encoder) did not break the mass away: it
         raises ``f_s_lo`` (and, if that reaches ``f_s_hi``, the breakaway force
         is sought anew up to ``1.1*f_s_lo``). A pulse that
-        moved lowers ``f_s_hi``, joins the history and the model is refitted.
+        moved lowers ``f_s_hi``, joins the history and the model is refitted: at once
+        (``reserve`` None), or as far as the update's operations allow after ``reserve`` of
+        them, the rest at the next updates (:meth:`advance`).
         Non-finite or meaningless observations are ignored.
         """
         if not (math.isfinite(f_p) and math.isfinite(d)) or f_p == 0.0 or n < 1:
@@ -188,7 +211,11 @@ class PulseModelEstimator:
             if self.f_s_lo >= self.f_s_hi:
                 self.f_s_lo = 0.0  # contradicting observations: forget the lower bound
             self._remember(int(n), f, d_along)
-            self.fit()
+            self.begin_fit()
+            if reserve is None:
+                self.finish_fit()
+            else:
+                self.advance(reserve)
         else:
             self.f_s_lo = max(self.f_s_lo, f)
             if self.f_s_lo >= self.f_s_hi:
@@ -210,6 +237,7 @@ class PulseModelEstimator:
     # -- the fit -----------------------------------------------------------------------
     def _residuals(self, theta: list[float]) -> list[float] | None:
         m, f_c, c = self.params(theta)
+        self.ops.eq3 += len(self.pulses)
         out = []
         for n, f, d in self.pulses:
             sigma = _SIGMA_REL * d + self.x_resolution + self.meas_sigma + _SIGMA_MIN
@@ -227,74 +255,151 @@ class PulseModelEstimator:
         return out
 
     def fit(self) -> None:
-        """Levenberg-Marquardt iterations over the history, the best of three starts.
+        """Refit the model to the history at once (:meth:`begin_fit`, :meth:`finish_fit`)."""
+        self.begin_fit()
+        self.finish_fit()
 
-        From the current estimate, and from the initial one and the initial one
-        with ``c = c_scale``, whose result is taken only when it explains the
-        pulses far better (cost below ``_RESTART_GAIN`` times the other's): a fit
-        that ran into a bound (``c = 0`` after a few pulses of one shape) is not
-        kept there by the next pulses. With an encoder (``x_resolution > 0``)
-        or noise measured (``meas_sigma > 0``) the fit is only continued: a
-        fresh start would chase the rounding and the noise.
+    def begin_fit(self) -> None:
+        """Start a fit of the history: Levenberg-Marquardt iterations, the best of three starts.
+
+        From the current estimate (or, where a fit is under way, from where it got), and from
+        the initial one and the initial one with ``c = c_scale``, whose result is taken only
+        when it explains the pulses far better (cost below ``_RESTART_GAIN`` times the
+        other's): a fit that ran into a bound (``c = 0`` after a few pulses of one shape) is
+        not kept there by the next pulses. With an encoder (``x_resolution > 0``) or noise
+        measured (``meas_sigma > 0``) the fit is only continued: a fresh start would chase the
+        rounding and the noise. :meth:`advance` makes it.
         """
-        t0 = list(self.theta0)
-        best = self._lm(list(self.theta))
-        exact_sensor = self.meas_sigma == 0.0 and self.x_resolution == 0.0
-        for start in (t0, [t0[0], t0[1], 1.0]) if exact_sensor else ():
-            found = self._lm(start)
-            if found is not None and (best is None or found[1] < _RESTART_GAIN * best[1]):
-                best = found
-        if best is not None:
-            self.theta = best[0]
-        self.rel_misfit = self._misfit()
+        job = self.job
+        if job and job[0] == 0.0:
+            theta = job[3:6]  # the fit under way, continued on the longer history
+        elif job and job[7]:
+            theta = job[8:11]
+        else:
+            theta = self.theta
+        self.job = [0.0, -1.0, 0.0, *(float(v) for v in theta), 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]
 
-    def _lm(self, theta: list[float]) -> tuple[list[float], float] | None:
-        """Levenberg-Marquardt from theta: the estimate reached and its cost (None: none)."""
-        theta = [self._clip(j, theta[j]) for j in range(3)]
-        theta[1] = min(theta[1], self._theta2_max())
-        r = self._residuals(theta)
-        if r is None:
-            return None
-        cost = sum(q * q for q in r)
-        mu = 1e-3
-        h = 1e-6
-        for _ in range(self.iterations):
-            jac: list[list[float]] = []
-            for j in range(3):
-                tp, tm = list(theta), list(theta)
-                tp[j] += h
-                tm[j] -= h
-                rp, rm = self._residuals(tp), self._residuals(tm)
-                if rp is None or rm is None:
-                    return theta, cost
-                jac.append([(a - b) / (2.0 * h) for a, b in zip(rp, rm, strict=True)])
-            jtj = [[sum(a * b for a, b in zip(jac[i], jac[k], strict=True)) for k in range(3)]
-                   for i in range(3)]
-            jtr = [sum(a * b for a, b in zip(jac[i], r, strict=True)) for i in range(3)]
-            improved = False
-            moved = 0.0
-            for _ in range(12):
-                lhs = [[jtj[i][k] + (mu * jtj[i][i] if i == k else 0.0) for k in range(3)]
-                       for i in range(3)]
-                step = _solve3(lhs, [-g for g in jtr])
-                if step is None:
-                    mu *= 10.0
+    def finish_fit(self) -> None:
+        """Make the fit under way to its end, whatever it costs."""
+        while self.job:
+            self.advance(None)
+
+    def lm_cost(self) -> int:
+        """Most Eq. (3) evaluations a step of the fit makes: the residuals it starts from,
+        one Levenberg-Marquardt iteration (its Jacobian by central differences and at most
+        12 trial steps) and the misfit of the estimate it leaves: 21 evaluations of the
+        history."""
+        return 21 * max(len(self.pulses), 1)
+
+    def advance(self, reserve: int | None = 0) -> None:
+        """Go on with the fit under way, while the update's operations allow (keeping
+        ``reserve`` of them; None: to its end).
+
+        A step is the residuals of a start or one Levenberg-Marquardt iteration, each at
+        most :meth:`lm_cost` evaluations of Eq. (3) with the misfit of the estimate. The
+        estimate is the best of the starts made, and while the first (from the estimate
+        before the pulse) is under way, its present iterate (it explains the pulses better
+        than the estimate it started from): a plan made before the fit's end uses that. The
+        end is the same as a fit made at once (:meth:`fit`) when nothing changes meanwhile.
+        """
+        job = self.job
+        r: list[float] | None = None
+        while job:
+            if reserve is not None and self.ops.left() - reserve < self.lm_cost():
+                if job[0] == 0.0 and job[1] > 0.0 and job[3:6] != self.theta:
+                    # the first start under way: its iterate is the estimate until it ends
+                    self.theta = job[3:6]
+                    self.rel_misfit = self._misfit()
+                return
+            start, k = int(job[0]), int(job[1])
+            if start == 3:
+                self.job = []  # every start made: the best is the estimate
+                return
+            if k < 0:
+                theta = job[3:6] if start == 0 else list(self.theta0)
+                if start == 2:
+                    theta[2] = 1.0
+                theta = [self._clip(j, theta[j]) for j in range(3)]
+                theta[1] = min(theta[1], self._theta2_max())
+                r = self._residuals(theta)
+                if r is None:
+                    self._start_done(job, None)
                     continue
-                trial = [self._clip(j, theta[j] + step[j]) for j in range(3)]
-                trial[1] = min(trial[1], self._theta2_max())
-                r_trial = self._residuals(trial)
-                if r_trial is not None:
-                    cost_trial = sum(q * q for q in r_trial)
-                    if cost_trial < cost:
-                        moved = max(abs(a - b) for a, b in zip(trial, theta, strict=True))
-                        theta, r, cost = trial, r_trial, cost_trial
-                        mu = max(mu / 10.0, 1e-12)
-                        improved = True
-                        break
+                job[1], job[2], job[3:6] = 0.0, 1e-3, theta
+                job[6] = sum(q * q for q in r)
+                if self.iterations <= 0:
+                    self._start_done(job, (job[3:6], job[6]))
+                continue
+            if r is None:
+                r = self._residuals(job[3:6])
+                if r is None:  # (the history changed under it: as the start's end)
+                    self._start_done(job, (job[3:6], job[6]))
+                    continue
+            r, done = self._lm_iteration(job, r)
+            job[1] = k + 1.0
+            if done or k + 1 >= self.iterations:
+                self._start_done(job, (job[3:6], job[6]))
+                r = None
+
+    def _start_done(self, job: list[float], found: tuple[list[float], float] | None) -> None:
+        """A start of the fit under way ended at ``found`` (theta and cost; None: no
+        residuals there): keep the best, go on with the next start."""
+        start = int(job[0])
+        if found is not None and (start == 0 or not job[7]
+                                  or found[1] < _RESTART_GAIN * job[11]):
+            # the best so far is the estimate from now on (a plan made before the fit's
+            # end uses it)
+            job[7], job[8:11], job[11] = 1.0, list(found[0]), found[1]
+            self.theta = list(found[0])
+            self.rel_misfit = self._misfit()
+        elif start == 0:
+            self.rel_misfit = self._misfit()
+        exact_sensor = self.meas_sigma == 0.0 and self.x_resolution == 0.0
+        job[0] = start + 1.0 if exact_sensor else 3.0
+        job[1] = -1.0
+
+    def _lm_iteration(self, job: list[float], r: list[float]) -> tuple[list[float], bool]:
+        """One Levenberg-Marquardt iteration of the start under way (``job``: its theta,
+        cost and damping, updated), from its residuals r: the residuals it ends at, and
+        whether the start has ended (no step lowered the cost, or the step was below
+        1e-14)."""
+        theta, cost, mu = job[3:6], job[6], job[2]
+        h = 1e-6
+        jac: list[list[float]] = []
+        for j in range(3):
+            tp, tm = list(theta), list(theta)
+            tp[j] += h
+            tm[j] -= h
+            rp, rm = self._residuals(tp), self._residuals(tm)
+            if rp is None or rm is None:
+                return r, True
+            jac.append([(a - b) / (2.0 * h) for a, b in zip(rp, rm, strict=True)])
+        jtj = [[sum(a * b for a, b in zip(jac[i], jac[k], strict=True)) for k in range(3)]
+               for i in range(3)]
+        jtr = [sum(a * b for a, b in zip(jac[i], r, strict=True)) for i in range(3)]
+        improved = False
+        moved = 0.0
+        for _ in range(12):
+            lhs = [[jtj[i][k] + (mu * jtj[i][i] if i == k else 0.0) for k in range(3)]
+                   for i in range(3)]
+            step = _solve3(lhs, [-g for g in jtr])
+            if step is None:
                 mu *= 10.0
-            if not improved or moved < 1e-14:
-                break
-        return theta, cost
+                continue
+            trial = [self._clip(j, theta[j] + step[j]) for j in range(3)]
+            trial[1] = min(trial[1], self._theta2_max())
+            r_trial = self._residuals(trial)
+            if r_trial is not None:
+                cost_trial = sum(q * q for q in r_trial)
+                if cost_trial < cost:
+                    moved = max(abs(a - b) for a, b in zip(trial, theta, strict=True))
+                    theta, r, cost = trial, r_trial, cost_trial
+                    mu = max(mu / 10.0, 1e-12)
+                    improved = True
+                    break
+            mu *= 10.0
+        job[2], job[3:6], job[6] = mu, theta, cost
+        return r, not improved or moved < 1e-14
 
     def _misfit(self) -> float:
         """Root mean square of the relative model errors beyond the resolution.
@@ -304,6 +409,7 @@ class PulseModelEstimator:
         if not self.pulses:
             return _MISFIT_MIN
         m, f_c, c = self.params()
+        self.ops.eq3 += len(self.pulses)
         total = 0.0
         for n, f, d in self.pulses:
             err = (abs(pulse_displacement(f, n * self.T, m, f_c, c) - d) - self.x_resolution
@@ -315,18 +421,25 @@ class PulseModelEstimator:
     # -- state -------------------------------------------------------------------------
     def state(self) -> dict[str, Any]:
         """Everything that evolves, by name: ``theta`` (3 numbers), ``f_s_lo``, ``f_s_hi``
-        (N), ``rel_misfit`` and ``pulses`` (n, abs(f_p), d of each, flat, oldest first)."""
+        (N), ``rel_misfit``, ``pulses`` (n, abs(f_p), d of each, flat, oldest first) and
+        ``job`` (the fit under way, :data:`JOB_FIELDS`; empty: none)."""
         return {"theta": [float(v) for v in self.theta], "f_s_lo": self.f_s_lo,
                 "f_s_hi": self.f_s_hi, "rel_misfit": self.rel_misfit,
-                "pulses": [float(v) for p in self.pulses for v in p]}
+                "pulses": [float(v) for p in self.pulses for v in p],
+                "job": [float(v) for v in self.job]}
 
     def set_state(self, values: Mapping[str, Any]) -> None:
         """Restore a state returned by :meth:`state` (ValueError if it does not fit)."""
         theta = [float(q) for q in values["theta"]]
         flat = [float(q) for q in values["pulses"]]
+        job = [float(q) for q in values["job"]]
         if len(theta) != 3 or len(flat) % 3 or len(flat) > 3 * self.size:
             raise ValueError(f"estimator state: theta holds {len(theta)} numbers (3), pulses "
                              f"{len(flat)} (a multiple of 3, at most {3 * self.size})")
+        if job and not (len(job) == len(JOB_FIELDS) and job[0] in (0.0, 1.0, 2.0, 3.0)):
+            raise ValueError(f"estimator state: job holds {len(job)} numbers ({len(JOB_FIELDS)}: "
+                             f"{', '.join(JOB_FIELDS)}, start 0 to 3) or none")
+        self.job = job
         self.theta = theta
         self.f_s_lo, self.f_s_hi = float(values["f_s_lo"]), float(values["f_s_hi"])
         self.rel_misfit = float(values["rel_misfit"])

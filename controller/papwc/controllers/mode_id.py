@@ -25,7 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
-__all__ = ["ModeIdentifier"]
+__all__ = ["ModeIdentifier", "mode_of"]
 
 #: Triples of force-free readings of a stuck table the fit needs before it may accept.
 MIN_TRIPLES = 8
@@ -119,6 +119,12 @@ class ModeIdentifier:
     def fit(self) -> float | None:
         """Frequency of the least-squares fit, Hz, or None (too few triples, too little
         ringing, poles not complex or not inside the unit circle)."""
+        found = self.ringing()
+        return found[0] if found is not None else None
+
+    def ringing(self) -> tuple[float, float] | None:
+        """Undamped frequency (Hz) and ``2*sigma`` (1/s) of the least-squares fit, or None
+        (see :meth:`fit`)."""
         s11, s12, s22, sy1, sy2, syy = self.sums
         if self.triples < MIN_TRIPLES:
             return None
@@ -129,8 +135,7 @@ class ModeIdentifier:
             return None
         a_1 = (sy1 * s22 - sy2 * s12) / det
         a_2 = (s11 * sy2 - s12 * sy1) / det
-        found = mode_of(a_1, a_2, self.T)
-        return found[0] if found is not None else None
+        return mode_of(a_1, a_2, self.T)
 
     def _judge(self) -> None:
         f = self.fit()

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from .dual_loop import DualLoopController
 from .exact import ExactController
+from .hybrid import HybridController
 from .interface import Controller
 from .papwc import PapwcController
 from .pid import PidController
@@ -25,6 +26,7 @@ CONTROLLER_KINDS: dict[str, type[Controller]] = {
     ExactController.kind: ExactController,
     PidController.kind: PidController,
     DualLoopController.kind: DualLoopController,
+    HybridController.kind: HybridController,
 }
 
 

@@ -11,11 +11,14 @@ The sequence within one maneuver:
    (by the control law), applied for whole samples, and followed by *wait* until
    the mass is at rest again; the displacement from the pulse's start to that
    rest is given to the law;
-3. *settled* once the mass is at rest with ``|e| <= tolerance``: the output is
-   0. A controller that gives up (the law refuses to plan, the pulse budget is
-   spent, no pulse can bring the mass nearer) *stops*: output 0 until the next
-   maneuver. Either way ``outcome`` and ``outcome_reason`` say how the maneuver
-   ended (:data:`papwc.model.controller_settings.OUTCOMES`, ``OUTCOME_REASONS``).
+3. *settled* once the mass is at rest with ``abs(e) <= tolerance``, and, on an encoder of
+   count q the law is told (``x_resolution``), with ``abs(e) + q/2 <= tolerance`` (the
+   table lies anywhere within q/2 of a still reading; for a tolerance below q/2, at the
+   count nearest the target): the output is 0. A controller that gives up (the law
+   refuses to plan, the pulse budget is spent, no pulse can bring the mass nearer)
+   *stops*: output 0 until the next maneuver. Either way ``outcome`` and
+   ``outcome_reason`` say how the maneuver ended
+   (:data:`papwc.model.controller_settings.OUTCOMES`, ``OUTCOME_REASONS``).
 
 Rest is read by a :class:`~.rest.RestDetector`. With encoder noise sigma > 0
 the sequencer decides on the averaged reading ``x_hat`` at N = D + 1 readings
@@ -190,6 +193,9 @@ class PulseSequencer:
         self.k_d = s.k_d_value
         self.guarded = bool(s.safeguards)
         self.max_pulses = int(s.max_pulses)
+        #: Half the encoder's count the law is told (``x_resolution``; 0 for a law that is
+        #: not), m: how far from a still reading the table may be.
+        self.half_count = 0.5 * float(s.x_resolution)
         self.refusal = Reason.NO_MOVE_HELPS
         self.reset()
 
@@ -348,7 +354,10 @@ class PulseSequencer:
                     return 0.0
                 self.mode = Mode.WAIT
                 return 0.0
-        elif abs(e) <= tol:
+        elif abs(e) <= tol and (abs(e) + self.half_count <= tol or abs(e) <= self.half_count):
+            # on an encoder of count q the table lies within q/2 of the reading: settled
+            # where that whole range is within the tolerance (or, for a tolerance below q/2,
+            # at the count nearest the target, the best the encoder can tell)
             return self.settle()
         if abs(e) > self.e_band or (abs(e) > self.hand_over_band()
                                     and not (self.mode == _M_COARSE

@@ -53,8 +53,8 @@ class ControllerSettings:
     with its unit, default, range and the kinds that read it (the reference's table of
     scenario fields lists them); ``lam`` is the setting ``lambda``. ``None`` selects the
     default a setting computes from others (``f_p_min``, ``k_p``, ``k_d``, ``k_i``,
-    ``a_max``). Values are not checked when the object is made: :meth:`problems` checks
-    them.
+    ``a_max``, ``in_position``, ``in_position_band``). Values are not checked when the object
+    is made: :meth:`problems` checks them.
 
     Examples
     --------
@@ -103,15 +103,20 @@ class ControllerSettings:
     x_resolution: float = 0.0
     f_s_tol: float = 0.02
     trust0: float = 0.5
+    settle_timeout: float = 10.0
     # pid
     k_i: float | None = None
     a_max: float | None = None
     v_max: float = 0.05
     hunt_max: int = 4
+    in_position: bool | None = None
+    in_position_band: float | None = None
     # dual_loop
     c_t_est: float = 0.0
     f_relax: float = 2.0
     identify_mode: bool = False
+    # hybrid
+    ramp_rate: float = 150.0
 
     @classmethod
     def field_names(cls) -> list[str]:

@@ -28,7 +28,7 @@ by :mod:`.native_build` for win64, linux64 and darwin64; it needs no Python in t
 - PulseController: always native, the controller kinds the C controller implements
   (:data:`papwc.fmubuild.native_tables.NATIVE_KINDS`: pwc, papwc, pid);
   PulseControllerPython, always pythonfmu (``fmu_src/PulseController/PulseControllerPython.py``),
-  has every kind (exact and dual_loop only there) and the same variables. ClosedLoop.ssp
+  has every kind (exact, dual_loop and hybrid only there) and the same variables. ClosedLoop.ssp
   takes PulseController.fmu for the kinds it has, else PulseControllerPython.fmu
   (:func:`controller_fmu_name`).
 """
@@ -170,8 +170,8 @@ _DESCRIPTIONS = {
         "Adaptive pulse controller for positioning a mass with stick-slip friction, in C: PWC "
         "(kind pwc, Eqs. (5)-(9)), PAPWC (papwc, Eqs. (10)-(18)) or the PID baseline (pid); "
         "at each communication step of size T it reads the measured position and the "
-        "reference and sets the force to hold over the next sample (the kinds exact and "
-        "dual_loop: PulseControllerPython.fmu)"
+        "reference and sets the force to hold over the next sample (the kinds exact, "
+        "dual_loop and hybrid: PulseControllerPython.fmu)"
     ),
 }
 

@@ -313,7 +313,8 @@ def controller_tables() -> ControllerTables:
         "REGRESSOR_PLANNED": papwc_law.REGRESSOR_PLANNED,
         "CUT_BY_ONE_UP_TO": base.CUT_BY_ONE_UP_TO,
         **{name: getattr(pid, name) for name in (
-            "BANDWIDTH", "ZETA", "MODE_BANDWIDTH", "INTEGRAL")},
+            "BANDWIDTH", "ZETA", "MODE_BANDWIDTH", "INTEGRAL", "SLOPE_NORM", "IN_POSITION_T",
+            "IN_POSITION_T_MARGIN")},
     }
     texts = {"MODE_PERIODS": format(cs.MODE_PERIODS, "g"),
              "F_MODE_MAX_T": format(cs.F_MODE_MAX_T, "g")}

@@ -10,7 +10,8 @@ The archive (mode 0644) holds ``SystemStructure.ssd`` and the two FMUs in
   paper's controllers;
 - connections ``plant.x_meas -> controller.x_meas`` (the encoder output: what a
   real controller sees; it equals ``x`` with the ideal encoder,
-  ``x_resolution = 0``) and ``controller.u -> plant.u``;
+  ``x_resolution = 0``) and ``controller.u -> plant.u``; for a controller kind that reads
+  the motor encoder (``dual_loop``) also ``plant.x_d_meas -> controller.x_d_meas``;
 - inline parameter bindings (``ssd:ParameterValues``), in one parameter set
   named :data:`PARAMETER_SET` in both components (ecos applies one named set at
   a time; libcosim applies every binding), of types every SSP reader can set
@@ -65,6 +66,7 @@ from papwc.scenario import Scenario, load_scenario
 __all__ = [
     "CONNECTIONS",
     "CONTROLLER",
+    "MOTOR_CONNECTION",
     "PARAMETER_SET",
     "PLANT",
     "build_closed_loop_ssp",
@@ -370,7 +372,7 @@ def build_closed_loop_ssp(
     plant_fmu, controller_fmu : Path
         ``FrictionPlant.fmu`` and ``PulseController.fmu``, copied into the
         archive's ``resources/``; for a kind the native PulseController.fmu does not
-        implement (exact, dual_loop), ``PulseControllerPython.fmu`` beside it.
+        implement (exact, dual_loop, hybrid), ``PulseControllerPython.fmu`` beside it.
     controller_index : int, optional
         Index (0-based) of the ``[[controller]]`` table; default: the first
         table of kind ``"papwc"`` (in ``scenarios/paper.toml``, PAPWC with

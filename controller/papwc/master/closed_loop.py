@@ -298,13 +298,13 @@ def run_controller(plant: Slave, settings: ControllerSettings, maneuver: Maneuve
         The controller's name in the traces (default: its kind).
     observers : sequence of Observer
         Further observers (see :func:`run_closed_loop`).
-    stopped : callable, optional
-        Given what was computed when Ctrl-C or SIGTERM stops the run (see
-        :func:`run_closed_loop`).
     library : NativeControllerLibrary, optional
         The C controller (:class:`papwc.master.native_controller.NativeControllerLibrary`):
         used for a kind it implements, the Python controller otherwise; the same numbers
         either way. Default: the Python controller.
+    stopped : callable, optional
+        Given what was computed when Ctrl-C or SIGTERM stops the run (see
+        :func:`run_closed_loop`).
 
     Returns
     -------

@@ -62,8 +62,9 @@ F_MODE_MAX_T = 0.25
 SHARED_SETTINGS: tuple[Variable, ...] = (
     Variable("kind", "Controller kind (pwc: Section 2, papwc: Section 3, exact: Eq. (3) "
              "learned, pid: PID with friction feed-forward, no pulses, dual_loop: exact pulses "
-             "from a drive relaxed by a motor-side loop on x_d_meas)", "", "papwc",
-             type="String"),
+             "from a drive relaxed by a motor-side loop on x_d_meas, hybrid: the PID's approach "
+             "with its in-position window, then force ramps cut on the first reliable move, "
+             "for T = 1 ms)", "", "papwc", type="String"),
     Variable("f_p_max", "Largest pulse amplitude (PWC always pulses at f_p_max), and the force "
              "limit of the coarse feedback and of the PID", "N", 300.0,
              min=0.0, min_open=True, max=1e9, nominal=100.0),
@@ -249,7 +250,7 @@ OUTCOME_REASONS: tuple[str, ...] = (
     "",  # 0: active
     "within_tolerance",  # 1: settled
     "no_move_helps",  # 2: no pulse it can make would bring the mass nearer to the target
-    "pulse_budget",  # 3: max_pulses pulses in this maneuver
+    "pulse_budget",  # 3: max_pulses pulses in this maneuver (exact, dual_loop: settle_timeout)
     "model_rejected",  # 4: its model predicts so badly that no pulse can be trusted
     "time_ended",  # 5: the maneuver ended while the controller was still active
     "invalid_measurement",  # 6: a reading or reference not finite, or beyond 1e6 m

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-from .stickslip import coast_to_rest, step
+from .stickslip import _exp, _phi1, _phi2, _psi, coast_to_rest, step
 
 __all__ = [
     "b_coulomb",
@@ -106,8 +106,36 @@ def pulse_displacement(f_p: float, t_p: float, m: float, f_c: float, c: float) -
     Equals ``f_p*t_p/c - (m*f_c/c**2)*log((f_p/f_c)*(exp(c*t_p/m) - 1) + 1)``
     for ``f_p > f_c`` and ``c > 0``, without its cancellation for small c. See
     :func:`pulse_response` for the parameters.
+
+    The two segments of :func:`pulse_response` (the pulse from rest, then the coast) written
+    out with the very operations :func:`~papwc.model.stickslip.step` and
+    :func:`~papwc.model.stickslip.coast_to_rest` make there, so the result is
+    :func:`pulse_response`'s bit for bit (a test draws it so) in two thirds of the time: the
+    controllers' fits and plans evaluate it thousands of times a pulse.
     """
-    return pulse_response(f_p, t_p, m, f_c, c)[0]
+    f = abs(f_p)
+    if not (t_p > 0.0 and f > f_c):
+        return 0.0
+    # the pulse: step() from x = v = 0 with u = f, which breaks the mass away along f_p
+    x = v = 0.0
+    s = 1.0 if f > 0.0 else -1.0
+    force = f - s * f_c
+    z = c * t_p / m
+    p1 = _phi1(z)
+    x, v = (x + v * t_p * p1 + (force / m) * t_p * t_p * _phi2(z),
+            v * _exp(-z) + (force / m) * t_p * p1)
+    if s * v < 0.0:
+        v = 0.0
+    # the coast: coast_to_rest() from (x, v)
+    if v != 0.0:
+        force = -f_c if v > 0.0 else f_c
+        if force == 0.0:
+            x = x + v * m / c if c > 0.0 else math.copysign(math.inf, v)
+        else:
+            t_star = -(m * v / force) * _psi(-c * v / force)
+            z = c * t_star / m
+            x = x + v * t_star * _phi1(z) + (force / m) * t_star * t_star * _phi2(z)
+    return x if f_p > 0.0 else -x
 
 
 def bisect_increasing(

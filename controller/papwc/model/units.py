@@ -23,4 +23,5 @@ UNIT_DEFINITIONS: dict[str, dict[str, int]] = {
     "N/m": {"kg": 1, "s": -2},
     "N.s/m": {"kg": 1, "s": -1},
     "N/(m.s)": {"kg": 1, "s": -3},
+    "N/s": {"kg": 1, "m": 1, "s": -3},
 }

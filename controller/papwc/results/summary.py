@@ -9,6 +9,28 @@ from papwc.controllers import Mode
 from papwc.master.trace import Trace
 from papwc.model.controller_settings import OUTCOME_REASONS, OUTCOMES
 
+#: The end of an iteration in which a settled controller must hold the table, s (issue 46:
+#: no hunting after it settles, the last 0.5 s of the trace).
+HUNT_WINDOW_S = 0.5
+
+
+def settled_span(trace: Trace, window_s: float = HUNT_WINDOW_S) -> float:
+    """How far the table moved after the controller called it settled, at the end of an
+    iteration: the span (max - min, m) of the true position x over the last ``window_s``
+    seconds, from the first sample there at which the outcome is ``settled`` on; NaN if the
+    outcome is ``settled`` at no sample of that stretch (the controller still worked or
+    gave up)."""
+    cols = trace.columns
+    n = len(trace)
+    k0 = max(0, n - max(1, int(round(window_s / trace.T))))
+    settled = OUTCOMES.index("settled")
+    outcome = cols["outcome"]
+    for k in range(k0, n):
+        if outcome[k] == settled:
+            xs = cols["x"][k:]
+            return max(xs) - min(xs)
+    return math.nan
+
 
 def summarize(trace: Trace, tolerance: float, window: float = 0.25) -> dict[str, Any]:
     """Metrics of one iteration.
@@ -30,15 +52,16 @@ def summarize(trace: Trace, tolerance: float, window: float = 0.25) -> dict[str,
         still active at the end), ``limit_cycle`` (pulses in both directions
         within the final window), ``cycle_p2p_m`` (peak-to-peak of x in the
         final window, m), ``b_hat``, ``f_c_hat``, ``outcome`` (``"settled"`` if
-        the controller ended settled, else ``"stopped"``) and ``outcome_reason``
+        the controller ended settled, else ``"stopped"``), ``outcome_reason``
         (the controller's reason, ``"time_ended"`` if it was still active at the
-        end).
+        end) and ``settled_span_m`` (:func:`settled_span`).
     """
     n = len(trace)
     if not n:
         return {"final_error_m": math.nan, "pulses": 0, "settle_time_s": math.nan,
                 "limit_cycle": False, "cycle_p2p_m": math.nan, "b_hat": math.nan,
-                "f_c_hat": math.nan, "outcome": "stopped", "outcome_reason": "time_ended"}
+                "f_c_hat": math.nan, "outcome": "stopped", "outcome_reason": "time_ended",
+                "settled_span_m": math.nan}
     cols = trace.columns
     mode, t, x, u = cols["mode"], cols["t"], cols["x"], cols["u"]
     settle = math.nan
@@ -60,6 +83,7 @@ def summarize(trace: Trace, tolerance: float, window: float = 0.25) -> dict[str,
         "b_hat": cols["b_hat"][-1],
         "f_c_hat": cols["f_c_hat"][-1],
         **outcome_of(cols["outcome"][-1], cols["outcome_reason"][-1]),
+        "settled_span_m": settled_span(trace),
     }
 
 
