@@ -47,7 +47,10 @@ stick's lowest breakaway from the moves, as the exact-model controller does): to
 the table (24); told what ``papwc identify`` fits, the mass, the friction, the damping, the lag
 and the Stribeck curve, and no ripple (25); told what it finds on a 60 s log of the table
 (26: :func:`identified`, about 2 min a table; not on LuGre tables, which it does not model),
-and the same but the table's v_s (27).
+and the same but the table's v_s (27). Row 28 is told what ``papwc identify`` finds since
+issue 46, the friction ripple and the stiction band too (its middle and half-width as ``f_s``
+and ``f_s_spread``: where the breakaway is drawn, as rows 1-23 are told the table's), from
+a log made under another seed.
 
 Run ``python -m papwc_studies.ceiling [--tables N] [--rows K,L,...] [--files A,B,...]`` (N: at
 most that many tables of each file; K, L: the rows of :data:`MODELS` by number from 1; A, B:
@@ -106,6 +109,10 @@ STEPS = 18
 #: The fields ``papwc identify`` fits (v_s and tau_u where it chooses the Stribeck curve and
 #: the lag).
 IDENTIFIED = ("m", "f_c", "c", "v_s", "tau_u")
+#: The fields it fits since issue 46 as well: the friction ripple and the stiction band (its
+#: middle and half-width, as f_s and f_s_spread).
+IDENTIFIED_WITH_BAND = IDENTIFIED + ("ripple", "ripple_period", "ripple_phase", "f_s",
+                                     "f_s_spread")
 
 
 class Model(NamedTuple):
@@ -193,6 +200,9 @@ MODELS = (
           encoder=True, identified=IDENTIFIED),
     Model("the same but the table's v_s", told={"ripple": 0.0}, band=False, encoder=True,
           identified=tuple(name for name in IDENTIFIED if name != "v_s")),
+    Model("what papwc identify finds on a 60 s log of the table with the ripple and the "
+          "stiction band (issue 46), the breakaway drawn within that band, through the table's "
+          "encoder", encoder=True, identified=IDENTIFIED_WITH_BAND),
 )
 #: What a planner learns a field over: values from the one under which a pulse moves the
 #: table farthest (no lag; friction falling off at the lowest speed) to the least far,
@@ -627,26 +637,31 @@ def beyond(record: Sequence[tuple[float, float]], far: bool) -> tuple[int, int, 
     return len(moving), len(out), max(out, default=0.0)
 
 
-def identified(params: dict[str, float]) -> dict[str, float]:
-    """What ``papwc identify`` finds on the table: the fields it fits, from a log of its
+def identified(params: dict[str, float], fields: tuple[str, ...] = IDENTIFIED
+               ) -> dict[str, float]:
+    """What ``papwc identify`` finds on the table: the ``fields`` it fits, from a log of its
     excitation with the defaults of ``papwc identify --design`` (60 s at 100 Hz) applied to
-    the table and read through its encoder; ``v_s`` and ``tau_u`` 0 where it did not choose
-    the Stribeck curve or the lag."""
+    the table and read through its encoder; a deviation not chosen at its value of none (0).
+    For the fields of :data:`IDENTIFIED_WITH_BAND` the log is made under another seed (that
+    of ``[battery] identify_first``), so that it does not see the draws the approach meets."""
+    from papwc.battery.identify_first import SEED_SHIFT
     from papwc.identify import DESIGN_DURATION, DESIGN_F_P_MAX, DESIGN_T, DESIGN_TRAVEL
     from papwc.identify.excitation import apply_to_plant, design
     from papwc.identify.fit import identify
 
     u = design(DESIGN_T, DESIGN_F_P_MAX, DESIGN_TRAVEL, DESIGN_DURATION)
-    log = apply_to_plant(u, DESIGN_T, params)
-    found = {e.name: e.value for e in identify(log).estimates}
-    return {name: float(found.get(name, 0.0)) for name in IDENTIFIED}
+    if fields == IDENTIFIED_WITH_BAND:
+        params = {**params, "seed": (int(params.get("seed", 0)) + SEED_SHIFT) % 2**31}
+    found = identify(apply_to_plant(u, DESIGN_T, params)).plant
+    return {name: float(found.get(name, 0.0)) for name in fields}
 
 
 def approach(params: dict[str, float], told: Model) -> Approach:
     """:meth:`Approach.run` from ``E0`` within ``BUDGET`` (a worker's task); told what
     ``papwc identify`` finds on the table first where the model says so."""
     if told.identified:
-        found = identified(params)
+        found = identified(params, IDENTIFIED_WITH_BAND if "f_s_spread" in told.identified
+                           else IDENTIFIED)
         told = told._replace(told={**told.told,
                                    **{name: found[name] for name in told.identified}})
     return (FastApproach if told.fast else Approach)(params, told).run()

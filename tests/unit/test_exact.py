@@ -34,7 +34,7 @@ SCENARIOS = Path(__file__).resolve().parents[2] / "scenarios"
 
 #: The settings only the exact controller reads, with their defaults.
 EXACT_SETTINGS = {"c_est": 0.0, "history": 16, "x_resolution": 0.0, "f_s_tol": 0.02,
-                  "trust0": 0.5, "settle_timeout": 10.0}
+                  "trust0": 0.5, "f_b_floor": 0.0, "f_b_step": 0.0, "settle_timeout": 10.0}
 
 
 def plant_displacement(f_p: float, n: int, plant: dict = TABLE_1) -> float:
@@ -508,3 +508,41 @@ def test_a_still_reading_is_settled_only_where_the_whole_count_is_within_toleran
     ctl = make_controller(_settings(tolerance=tolerance, x_resolution=q), T)
     ctl.update(0.0, 0.01 - off, 0.01)
     assert (ctl.outcome == Outcome.SETTLED) == settled
+
+
+# -- the identified stiction band (issue 46: f_b_floor, f_b_step) ---------------------------
+def test_without_a_band_the_controller_plans_as_before():
+    ctl = make_controller(_settings(), T)
+    ev = ctl.evidence
+    assert ctl.band == (0.0, 0.0) and not ctl.on_evidence()
+    ev.breakaway.fresh = 123.0
+    assert ev.lowest_breakaway() == ev.breakaway.lowest() == 123.0
+    ev.implied = [120.0, 126.0]
+    assert ev.f_b_low() == pytest.approx(120.0 * (1.0 - 6.0 / 126.0))
+
+
+def test_the_band_s_floor_is_the_lowest_breakaway_of_a_fresh_stick_from_the_first_pulse():
+    ctl = make_controller(_settings(f_b_floor=110.0), T)
+    ev = ctl.evidence
+    assert ctl.on_evidence()  # planned on the evidence of the breakaway from the first
+    ev.breakaway.fresh = 123.0  # what the moves would say is not taken
+    ev.implied = [120.0, 126.0]
+    assert ev.lowest_breakaway() == 110.0 and ev.f_b_low() == 110.0
+    assert ctl.f_low == 110.0
+    # a pulse that did not move proves the breakaway above it, until the table moves
+    ev.breakaway.observe(115.0, 0.0, moved=False)
+    ev.f_lb = 115.0
+    assert ev.lowest_breakaway() == 115.0 and ev.f_b_low() == 115.0
+    ev.breakaway.table_moved()
+    ev.f_lb = 0.0
+    assert ev.lowest_breakaway() == 110.0
+
+
+@pytest.mark.parametrize("goal", [1e-6, 5e-6, 3e-5])
+def test_no_one_sample_pulse_is_planned_more_than_the_band_s_width_above_the_floor(goal):
+    wide = make_controller(_settings(f_b_floor=110.0), T)
+    limited = make_controller(_settings(f_b_floor=110.0, f_b_step=4.0), T)
+    f_wide = wide.evidence._curve_height(goal, 300.0)
+    f_limited = limited.evidence._curve_height(goal, 300.0)
+    assert f_limited == min(f_wide, 114.0)
+    assert 110.0 < f_limited <= 114.0

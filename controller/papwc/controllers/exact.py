@@ -80,6 +80,15 @@ EXACT_SETTINGS: tuple[Variable, ...] = (
     Variable("trust0", "Trust region of a new controller: the largest planned displacement as "
              "a fraction of |e|; it grows to 1 while the model predicts well and shrinks when "
              "it does not", "1", 0.5, min=0.0, max=1.0, min_open=True),
+    Variable("f_b_floor", "The lowest breakaway force a fresh stick may have, as the height of "
+             "one sample from rest that reaches it (the identified stiction band's low end, "
+             "papwc identify; papwc.identify.plant_model.PlantModel.controller_band): the floor "
+             "of the staircase of one-sample pulses, which are then planned on the evidence of "
+             "the breakaway from the first (0: learned from the moves)", "N", 0.0, min=0.0,
+             max=1e9, nominal=100.0),
+    Variable("f_b_step", "The stiction band's width above f_b_floor, as such heights: no "
+             "one-sample pulse is planned higher above the lowest breakaway still possible "
+             "(0: no limit)", "N", 0.0, min=0.0, max=1e9, nominal=10.0),
     Variable("settle_timeout", "Time budget of a maneuver: once this long after its start "
              "(the first sample after a reset) without settling, the controller fires no "
              "further pulse and stops (outcome_reason pulse_budget); max_pulses does not "
@@ -157,6 +166,10 @@ class ExactController(PulseControllerBase):
 
     def __init__(self, settings: ControllerSettings, T: float) -> None:
         self.f_s_tol = float(settings.f_s_tol)
+        #: The identified stiction band as one-sample heights, N: its floor and width (0:
+        #: not given; ``f_b_floor``, ``f_b_step``). The evidence policy plans with it
+        #: (:meth:`Evidence.lowest_breakaway <.exact_policies.Evidence.lowest_breakaway>`).
+        self.band = (float(settings.f_b_floor), float(settings.f_b_step))
         #: The operations of the present update (:mod:`.budget`).
         self.ops = Ops()
         #: Samples (updates) since the maneuver started: its time is ``samples*T``.
@@ -241,7 +254,7 @@ class ExactController(PulseControllerBase):
         possible (:meth:`Evidence.f_b_low <.exact_policies.Evidence.f_b_low>`) once there is
         evidence of it, else ``f_floor``."""
         if self.on_evidence():
-            low = self.evidence.breakaway.lowest()
+            low = self.evidence.lowest_breakaway()
             if low > 0.0:
                 return min(low, self.settings.f_p_max)
         return self.f_floor
@@ -249,8 +262,10 @@ class ExactController(PulseControllerBase):
     def on_evidence(self) -> bool:
         """Whether the pulses near breakaway are planned on the evidence of the breakaway:
         it showed smooth, on a machine without a mode seen ringing, with ``safeguards``
-        (on a drive told its mode, from its first pulse: :meth:`plan_pulse`)."""
-        return (self.evidence_planning and self.evidence.breakaway.smooth and self.guarded
+        (on a drive told its mode, from its first pulse: :meth:`plan_pulse`); told the
+        stiction band (``f_b_floor``), from the first pulse too."""
+        return (self.evidence_planning
+                and (self.evidence.breakaway.smooth or self.band[0] > 0.0) and self.guarded
                 and (self.trust.flexible or not self.seq.flexible()))
 
     def correction(self, n: int, f: float) -> float:

@@ -555,7 +555,7 @@ class Evidence(Policy):
         """
         law = self.law
         ev = self.breakaway
-        low = ev.lowest()
+        low = self.lowest_breakaway()
         if not low > 0.0:
             est = law.estimator
             low = max(est.f_s_lo, est.f_c_hat)
@@ -574,6 +574,8 @@ class Evidence(Policy):
                 planned = min(planned, reach)
         else:
             f = low + ev.plan_excess(goal)
+        if law.band[1] > 0.0:
+            f = min(f, low + law.band[1])  # at most the band's width above the lowest
         f = min(f, law.settings.f_p_max)
         self.ev_lo = low
         self.planned = (1, f, planned)
@@ -592,6 +594,16 @@ class Evidence(Policy):
             return 1.0
         return min(1.0 / max(shares), BOOST_MAX)
 
+    def lowest_breakaway(self) -> float:
+        """The lowest breakaway force still possible now on the evidence, N (0: none): above
+        the highest height that did not move since the table moved, and the identified
+        band's floor where it is given (``f_b_floor``); else the lowest a fresh stick may
+        have on the moves (:meth:`BreakawayEvidence.lowest`)."""
+        floor = self.law.band[0]
+        if floor > 0.0:
+            return max(self.breakaway.f_lb, floor)
+        return self.breakaway.lowest()
+
     def f_b_low(self) -> float:
         """The lowest breakaway force still possible now, N (0: no evidence yet).
 
@@ -601,6 +613,8 @@ class Evidence(Policy):
         by their relative spread (at least ``LB_MARGIN``); without those, the same from
         the fit's bracket and f_c.
         """
+        if self.law.band[0] > 0.0:
+            return max(self.f_lb, self.law.band[0])
         if self.f_lb > 0.0:
             return self.f_lb
         lo = min(self.implied, default=0.0)

@@ -103,6 +103,8 @@ class ControllerSettings:
     x_resolution: float = 0.0
     f_s_tol: float = 0.02
     trust0: float = 0.5
+    f_b_floor: float = 0.0
+    f_b_step: float = 0.0
     settle_timeout: float = 10.0
     # pid
     k_i: float | None = None
