@@ -258,16 +258,17 @@ def test_fmu_pid_with_its_window_set_either_way_equals_the_python_pid(
 
 
 @pytest.mark.parametrize("timing", ["immediate", "delayed"])
-def test_fmu_hybrid_equals_the_python_hybrid_bit_for_bit(pulse_controller_fmu: Path,
+def test_fmu_hybrid_equals_the_python_hybrid_bit_for_bit(pulse_controller_python_fmu: Path,
                                                          paper: Scenario, timing: str) -> None:
-    """The hybrid (kind_code 6) at 1 ms on a Stribeck table through a 0.1 um encoder: every
-    column of two iterations equal to the Python hybrid's run, its ramps counted as pulses."""
+    """The hybrid (kind_code 6) at 1 ms on a Stribeck table through a 0.1 um encoder, in
+    PulseControllerPython.fmu (the C controller refuses it): every column of two iterations
+    equal to the Python hybrid's run, its ramps counted as pulses."""
     settings = ControllerSettings(kind="hybrid", f_p_max=300.0, tolerance=1e-7, m_est=150.0,
                                   f_c_est=80.0, x_resolution=1e-7)
     plant = {**paper.plant, "v_s": 1e-3, "x_resolution": 1e-7}
     maneuver = dataclasses.replace(paper.maneuver, x_ref=1e-3, T=1e-3, duration=1.0,
                                    iterations=2, timing=timing)
-    with controller_fmu(pulse_controller_fmu, settings, maneuver.T) as controller:
+    with controller_fmu(pulse_controller_python_fmu, settings, maneuver.T) as controller:
         result = run_closed_loop(physics(plant), controller, maneuver, settings)
     assert_same_runs(result, python_run(settings, plant, maneuver))
     assert result.traces[0].column("pulses")[-1] > 0
