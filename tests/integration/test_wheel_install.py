@@ -10,10 +10,11 @@ from pathlib import Path
 
 import pytest
 
-#: Largest size of a fresh venv holding papwc and its dependencies, bytes. Measured 477 MiB
-#: (2026-12-05, Python 3.11): fmpy 0.3.26 and newer require cmake (86 MiB) for their
-#: build_platform_binary, which papwc does not call; without it the venv is about 391 MiB.
-VENV_MAX = 500 * 1024 * 1024
+#: Largest size of a fresh venv holding papwc and its dependencies, bytes (the issue's 450 MB).
+#: Measured 2026-12-05, Python 3.11: 477 MiB with scipy a dependency (scipy 143 MiB with its
+#: libraries; fmpy 0.3.26 and newer require cmake, 86 MiB, for a build step papwc does not
+#: call); scipy is now the extra ``identify``.
+VENV_MAX = 450 * 10**6
 
 
 def _tracked_copy(project_dir: Path, target: Path) -> Path:
@@ -51,7 +52,7 @@ def test_a_wheel_holds_no_lab_needs_no_compiler_and_runs_the_main_job(tmp_path: 
     _run([str(python), "-m", "pip", "install", "-q", str(source)], tmp_path, 3600)
 
     size = _size(venv)
-    assert size <= VENV_MAX, f"the venv is {size / 2**20:.0f} MiB, over {VENV_MAX / 2**20:.0f}"
+    assert size <= VENV_MAX, f"the venv is {size / 1e6:.0f} MB, over {VENV_MAX / 1e6:.0f}"
     probe = ("import importlib.util as u; "
              "print([m for m in ('ziglang', 'papwc_studies') if u.find_spec(m)], "
              "u.find_spec('papwc.studies') is None)")
@@ -69,3 +70,9 @@ def test_a_wheel_holds_no_lab_needs_no_compiler_and_runs_the_main_job(tmp_path: 
     _run([sys.executable, "-m", "papwc.cli", "reproduce", "--out", str(tmp_path / "r0")], run, 1200)
     for name in ("paper_numbers.csv", "claims.csv", "runs/summary.csv"):
         assert (run / "r" / name).read_bytes() == (tmp_path / "r0" / name).read_bytes(), name
+    # identification is the extra 'identify' (scipy): without it, one line naming the extra
+    refused = subprocess.run([papwc, "identify", "--design", "--out", "id"], cwd=run,
+                             capture_output=True, text=True, timeout=300, check=False)
+    assert refused.returncode == 2 and not (run / "id").exists()
+    assert len(refused.stderr.strip().splitlines()) == 1
+    assert "papwc[identify]" in refused.stderr

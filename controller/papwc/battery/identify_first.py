@@ -56,11 +56,16 @@ def check_excitable(source: str, fmu_variables: Mapping[str, tuple[str, str]],
     """Refuse (ScenarioError, one line naming the battery file) a battery with
     ``identify_first`` whose plant FMU cannot be excited (no Real input ``u`` or no Real
     output ``x_meas``: ``fmu_variables`` maps a name to (causality, type)), or at whose
-    sample periods ``T_values`` the excitation cannot be made."""
+    sample periods ``T_values`` the excitation cannot be made, or where scipy (the extra
+    ``identify``) is not installed."""
     from papwc.errors import ScenarioError
-    from papwc.identify import IdentifyError
+    from papwc.identify import IdentifyError, require_scipy
     from papwc.model.maneuver import LOG_SAMPLE_PERIOD
 
+    try:
+        require_scipy("[battery] identify_first = true")
+    except IdentifyError as exc:
+        raise ScenarioError(f"{source}: {exc}") from None
     for name, causality in (("u", "input"), ("x_meas", "output")):
         if fmu_variables.get(name) != (causality, "Real"):
             raise ScenarioError(f"{source}: [battery] identify_first = true: the plant FMU has "

@@ -160,6 +160,9 @@ def _check(args: argparse.Namespace) -> tuple[str, tuple[str, ...]]:
 
 def run(args: argparse.Namespace) -> int:
     """Identify a log, design the excitation, or identify an FMU; return 0."""
+    from papwc.identify import require_scipy
+
+    require_scipy("papwc identify")
     from papwc.identify.excitation import apply_to_fmu, check_fmu, design_plan
     from papwc.identify.fit import check_log, identify
     from papwc.identify.fit_report import (

@@ -29,7 +29,8 @@ line, ``papwc identify machine.csv --out id/``.
 from papwc.errors import PapwcError
 from papwc.model.maneuver import LOG_SAMPLE_PERIOD
 
-__all__ = ["DESIGN_DURATION", "DESIGN_F_P_MAX", "DESIGN_T", "DESIGN_TRAVEL", "IdentifyError"]
+__all__ = ["DESIGN_DURATION", "DESIGN_F_P_MAX", "DESIGN_T", "DESIGN_TRAVEL", "IdentifyError",
+           "require_scipy"]
 
 #: The excitation's defaults (``papwc identify --design``): sample period, s; largest force,
 #: N; the travel the table stays within, m; length, s.
@@ -41,3 +42,19 @@ DESIGN_DURATION = 60.0
 
 class IdentifyError(PapwcError):
     """A log, an option or an FMU cannot be identified: the message says where and why."""
+
+
+def require_scipy(what: str) -> None:
+    """Refuse in one line (:class:`IdentifyError`) where scipy, whose least squares the fit
+    uses, is not installed: papwc installs it with its extra ``identify``.
+
+    Parameters
+    ----------
+    what : str
+        What needs it, for the message (``"papwc identify"``).
+    """
+    try:
+        import scipy  # noqa: F401
+    except ImportError:
+        raise IdentifyError(f"{what} needs scipy, which is not installed: pip install "
+                            "'papwc[identify]' (papwc's extra for identification)") from None
