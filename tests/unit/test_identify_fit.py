@@ -68,7 +68,12 @@ def test_no_deviation_is_reported_where_there_is_none(excitation):
     dropped = {t.label.split("(")[0] for t in ident.trials if t.label.startswith("without")}
     assert {"without Stribeck curve ", "without actuator lag ",
             "without friction ripple "} <= dropped
-    assert max(abs(e) for e in _errors(ident, plant).values()) < 0.03
+    errors = _errors(ident, plant)
+    # this plant breaks away at 66.7 N, below the first step of every tooth (0.6 times the
+    # expected 130 N): no stick is bracketed, so there is no band and f_s is not identified
+    assert plant["f_s"] < 0.6 * TABLE1["f_s"] and ident.band is None
+    errors.pop("f_s")
+    assert max(abs(e) for e in errors.values()) < 0.03, errors
 
 
 @pytest.mark.slow
