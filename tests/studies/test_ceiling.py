@@ -219,21 +219,16 @@ def test_the_identified_row_is_told_what_identify_finds(monkeypatch):
     import papwc.identify.excitation as excitation
     import papwc.identify.fit as fit
 
-    class Found:
-        def __init__(self, name, value):
-            self.name, self.value = name, value
-
     class Identification:
         # the Stribeck curve chosen, the lag not (and a field the planner is not told)
-        estimates = [Found("m", 149.0), Found("f_c", 97.0), Found("c", 720.0),
-                     Found("v_s", 3e-3), Found("f_s", 131.0)]
+        plant = {"m": 149.0, "f_c": 97.0, "c": 720.0, "v_s": 3e-3, "f_s": 131.0}
 
     logs = []
     monkeypatch.setattr(excitation, "design", lambda h, f_p_max, travel, duration: (
         h, f_p_max, travel, duration))
     monkeypatch.setattr(excitation, "apply_to_plant", lambda u, h, params: logs.append(
         (u, h, params)) or "log")
-    monkeypatch.setattr(fit, "identify", lambda log: Identification)
+    monkeypatch.setattr(fit, "identify", lambda log, *args, **kwargs: Identification)
     told = ceiling.identified(LAG)
     assert told == {"m": 149.0, "f_c": 97.0, "c": 720.0, "v_s": 3e-3, "tau_u": 0.0}
     # the log: the design's defaults (papwc identify --design) applied to the table itself
@@ -241,7 +236,8 @@ def test_the_identified_row_is_told_what_identify_finds(monkeypatch):
 
     # the row's approach plans on those values (and no ripple), the table stepped as it is
     seen = []
-    monkeypatch.setattr(ceiling, "identified", lambda params: seen.append(params) or told)
+    monkeypatch.setattr(ceiling, "identified",
+                        lambda params, fields=None: seen.append(params) or told)
     row = next(m for m in ceiling.MODELS if m.identified)
     done = ceiling.approach({**LAG, "ripple": 0.05, "ripple_period": 2e-3}, row)
     assert seen and seen[0]["ripple"] == 0.05
