@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from papwc.identify.accuracy import NOISY, TABLE1, draws
 from papwc.identify.excitation import apply_to_plant, design
 from papwc.identify.fit import identify, regression
 from papwc.identify.motion import analyse
+from papwc_studies.identify_accuracy import NOISY, TABLE1, draws
 
 H = 0.01
 

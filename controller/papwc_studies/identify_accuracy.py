@@ -1,4 +1,4 @@
-"""How well ``papwc identify`` recovers plants: ``python -m papwc.identify.accuracy``.
+"""How well ``papwc identify`` recovers plants (``python -m papwc_studies.identify_accuracy``).
 
 Two studies, each on plants drawn with a seed of its own, the default excitation (60 s at
 100 Hz, :func:`papwc.identify.excitation.design`) applied and identified:
@@ -186,7 +186,7 @@ def _table1(args: argparse.Namespace, tried: Sequence[str]) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Print the accuracy tables; return 0."""
-    parser = argparse.ArgumentParser(prog="python -m papwc.identify.accuracy",
+    parser = argparse.ArgumentParser(prog="python -m papwc_studies.identify_accuracy",
                                      description=__doc__.splitlines()[0])
     parser.add_argument("--plants", type=int, default=10,
                         help="plants drawn in Table 1 +-50 %% (default 10; 0: none)")
