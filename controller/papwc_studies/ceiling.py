@@ -644,14 +644,14 @@ def identified(params: dict[str, float], fields: tuple[str, ...] = IDENTIFIED
     the table and read through its encoder; a deviation not chosen at its value of none (0).
     For the fields of :data:`IDENTIFIED_WITH_BAND` the log is made under another seed (that
     of ``[battery] identify_first``), so that it does not see the draws the approach meets."""
-    from papwc.battery.identify_first import SEED_SHIFT
+    from papwc.battery.identify_first import excitation_seed
     from papwc.identify import DESIGN_DURATION, DESIGN_F_P_MAX, DESIGN_T, DESIGN_TRAVEL
     from papwc.identify.excitation import apply_to_plant, design
     from papwc.identify.fit import identify
 
     u = design(DESIGN_T, DESIGN_F_P_MAX, DESIGN_TRAVEL, DESIGN_DURATION)
     if fields == IDENTIFIED_WITH_BAND:
-        params = {**params, "seed": (int(params.get("seed", 0)) + SEED_SHIFT) % 2**31}
+        params = {**params, "seed": excitation_seed(params.get("seed", 0))}
     found = identify(apply_to_plant(u, DESIGN_T, params)).plant
     return {name: float(found.get(name, 0.0)) for name in fields}
 

@@ -29,13 +29,23 @@ import time
 from collections.abc import Mapping
 from typing import Any
 
-__all__ = ["CACHE_SIZE", "SEED_SHIFT", "check_excitable", "identified_table", "table_key"]
+__all__ = ["CACHE_SIZE", "SEED_SHIFT", "check_excitable", "excitation_seed", "identified_table",
+           "table_key"]
 
 #: Added to a table's seed for the excitation's run (modulo the seed's range).
 SEED_SHIFT = 104_729
 #: Tables kept identified per worker process.
 CACHE_SIZE = 256
 _CACHE: dict[str, dict[str, Any]] = {}
+
+
+def excitation_seed(seed: int) -> int:
+    """The seed the excitation runs under for a table of seed ``seed``: :data:`SEED_SHIFT`
+    added, modulo the seed's range (the model layer's ``seed``)."""
+    from papwc.model.plant import PLANT_PARAMETERS
+    from papwc.model.variables import by_name
+
+    return (int(seed) + SEED_SHIFT) % (int(by_name(PLANT_PARAMETERS)["seed"].max) + 1)
 
 
 def table_key(plant: Mapping[str, Any], T: float) -> str:
@@ -113,11 +123,8 @@ def _identify(plant: Mapping[str, Any], T: float, fmu_path: str, unzip_dir: str,
     from papwc.identify.excitation import apply_to_fmu
     from papwc.identify.fit import identify
     from papwc.identify.plant_model import plant_model_of
-    from papwc.model.plant import PLANT_PARAMETERS
 
-    seed_var = next(v for v in PLANT_PARAMETERS if v.name == "seed")
-    values = dict(plant)
-    values["seed"] = (int(values.get("seed", 0)) + SEED_SHIFT) % (seed_var.max + 1)
+    values = {**plant, "seed": excitation_seed(plant.get("seed", 0))}
     u = _excitation(T)
     log = apply_to_fmu(fmu_path, u, T, values, unzip_dir=unzip_dir)
     ident = identify(log, library="installed" if library is None else library)

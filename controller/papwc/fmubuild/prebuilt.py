@@ -101,11 +101,12 @@ def take(tree: Path, name: str, native_dir: Path = NATIVE_DIR,
         return False
     if recorded != sources_digest(tree, more):
         return False
+    files = _files(tree, name)
     # native_dir/<name>/<platform>/<file>
-    installed = {folder: home / folder / path.name for folder, path in _files(tree, name).items()}
+    installed = {folder: home / folder / path.name for folder, path in files.items()}
     if not all(path.is_file() for path in installed.values()):
         return False
-    for folder, path in _files(tree, name).items():
+    for folder, path in files.items():
         path.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(installed[folder], path)
     return True
